@@ -1,0 +1,39 @@
+# The one way to run things (STYLE habit 10): developers, CI and users run these targets.
+PY ?= python3
+VENV := .venv
+BIN := $(VENV)/bin
+PIP := $(BIN)/python -m pip --disable-pip-version-check -q
+DEMO_OUT ?= demo-out
+
+.PHONY: demo test lint bench install install-test clean
+
+$(BIN)/python:
+	$(PY) -m venv $(VENV)
+
+# Stamps re-run the install when pyproject.toml changes.
+$(VENV)/.stamp-install: pyproject.toml | $(BIN)/python
+	$(PIP) install -e .
+	@touch $@
+
+$(VENV)/.stamp-test: pyproject.toml | $(BIN)/python
+	$(PIP) install -e ".[test,bench]"
+	@touch $@
+
+install: $(VENV)/.stamp-install
+install-test: $(VENV)/.stamp-test
+
+demo: install
+	$(BIN)/stbs demo --out $(DEMO_OUT)
+
+lint: install-test
+	$(BIN)/ruff check src tests benchmarks
+
+test: install-test lint
+	$(BIN)/python -m pytest -q
+
+bench: install-test
+	$(BIN)/stbs bench
+
+clean:
+	rm -rf $(VENV) build dist src/*.egg-info $(DEMO_OUT) .pytest_cache .ruff_cache
+	find . -name __pycache__ -type d -prune -exec rm -rf {} +

@@ -1,0 +1,161 @@
+"""The rig's skeleton: joints ``C`` and directed bones ``BE`` (DESIGN §1)."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from . import _checks
+
+
+class Skeleton:
+    """A forest of directed bones between joints.
+
+    Parameters
+    ----------
+    C : (j, d) float
+        Rest joint positions, d = 2 or 3.
+    BE : (b, 2) int
+        Bones as directed joint pairs: bone i runs from ``C[BE[i, 0]]`` to ``C[BE[i, 1]]``.
+    names : sequence of b str, optional
+        Bone names (unique). Defaults to ``"bone0"``, ``"bone1"``, ...
+
+    Attributes
+    ----------
+    parents : (b,) int
+        Parent bone (the bone whose end joint is this bone's start joint), -1 for roots.
+    lengths : (b,) float
+        Rest bone lengths ``|b_i - a_i|``.
+    axes : (b, d) float
+        Unit rest axes ``u_i``.
+    dim : int
+        2 or 3.
+    roots : (r,) int
+        Bones without a parent.
+    order : (b,) int
+        A topological order: every bone comes after its parent.
+
+    Raises
+    ------
+    ValueError
+        For joint indices out of range, a bone listed twice (in either direction),
+        a zero-length bone, a bone with two parents, or a cycle; the message names the bone.
+    """
+
+    def __init__(self, C, BE, names: Sequence[str] | None = None):
+        C = _checks.real_array("C", C, ndim=2)
+        if C.shape[1] not in (2, 3):
+            raise ValueError(f"C must have shape (j, 2) or (j, 3), got {C.shape}")
+        BE = _checks.index_array("BE", BE, ndim=2, shape=(None, 2))
+        if BE.shape[0] == 0:
+            raise ValueError("BE must hold at least one bone, got shape (0, 2)")
+        j, b = C.shape[0], BE.shape[0]
+        if names is None:
+            names = [f"bone{i}" for i in range(b)]
+        names = [str(s) for s in names]
+        if len(names) != b:
+            raise ValueError(f"names must have {b} entries (one per bone), got {len(names)}")
+        if len(set(names)) != b:
+            dup = next(s for s in names if names.count(s) > 1)
+            raise ValueError(f"names must be unique, got {dup!r} twice")
+        self.C = C
+        self.BE = BE
+        self.names = names
+
+        def label(i: int) -> str:
+            return f"bone {i} ({names[i]!r}, joints {BE[i, 0]}->{BE[i, 1]})"
+
+        bad = np.flatnonzero((BE < 0).any(axis=1) | (BE >= j).any(axis=1))
+        if bad.size:
+            i = int(bad[0])
+            raise ValueError(f"BE: {label(i)} refers to a joint outside 0..{j - 1}")
+        seen: dict[tuple[int, int], int] = {}
+        for i, (s, e) in enumerate(BE.tolist()):
+            if s == e:
+                raise ValueError(f"BE: {label(i)} starts and ends at the same joint")
+            key = (min(s, e), max(s, e))
+            if key in seen:
+                raise ValueError(f"BE: {label(i)} is listed twice (also bone {seen[key]})")
+            seen[key] = i
+        vec = C[BE[:, 1]] - C[BE[:, 0]]
+        lengths = np.linalg.norm(vec, axis=1)
+        scale = max(float(np.abs(C).max()), 1.0)
+        zero = np.flatnonzero(lengths <= 1e-12 * scale)
+        if zero.size:
+            i = int(zero[0])
+            raise ValueError(f"BE: {label(i)} has zero length; STBS needs a bone direction "
+                             "(merge the joints or drop the bone)")
+        ends_at: dict[int, int] = {}
+        for i, e in enumerate(BE[:, 1].tolist()):
+            ends_at.setdefault(e, i)
+        parents = np.full(b, -1, dtype=np.int64)
+        for i, s in enumerate(BE[:, 0].tolist()):
+            enders = np.flatnonzero(BE[:, 1] == s)
+            if enders.size > 1:
+                raise ValueError(f"BE: {label(i)} has {enders.size} parents (bones "
+                                 f"{', '.join(map(str, enders.tolist()))} all end at joint {s})")
+            if enders.size == 1:
+                parents[i] = enders[0]
+        # Topological order by depth; a cycle shows up as a chain longer than b.
+        depth = np.full(b, -1, dtype=np.int64)
+        for i in range(b):
+            chain = []
+            k = i
+            while k >= 0 and depth[k] < 0:
+                chain.append(k)
+                if len(chain) > b:
+                    raise ValueError(f"BE: {label(i)} lies on a cycle of bones")
+                k = parents[k]
+            base = -1 if k < 0 else depth[k]
+            for m, c in enumerate(reversed(chain)):
+                depth[c] = base + 1 + m
+        self.parents = parents
+        self.lengths = lengths
+        self.axes = vec / lengths[:, None]
+        self.dim = int(C.shape[1])
+        self.roots = np.flatnonzero(parents < 0)
+        self.order = np.argsort(depth, kind="stable")
+        self.depth = depth
+        for arr in (self.C, self.BE, self.parents, self.lengths, self.axes, self.roots,
+                    self.order, self.depth):
+            arr.setflags(write=False)
+
+    @property
+    def n_bones(self) -> int:
+        """Number of bones b."""
+        return int(self.BE.shape[0])
+
+    @property
+    def n_joints(self) -> int:
+        """Number of joints j."""
+        return int(self.C.shape[0])
+
+    @property
+    def A(self) -> np.ndarray:
+        """(b, d) rest start joints ``a_i``."""
+        return self.C[self.BE[:, 0]]
+
+    @property
+    def B(self) -> np.ndarray:
+        """(b, d) rest end joints ``b_i``."""
+        return self.C[self.BE[:, 1]]
+
+    def bone_index(self, key: int | str) -> int:
+        """Index of a bone given by index (int or digit string) or by name."""
+        if isinstance(key, (int, np.integer)) and not isinstance(key, bool):
+            i = int(key)
+        elif isinstance(key, str) and key in self.names:
+            return self.names.index(key)
+        elif isinstance(key, str) and key.lstrip("-").isdigit():
+            i = int(key)
+        else:
+            raise ValueError(f"bone {key!r} does not exist; bones are 0..{self.n_bones - 1} "
+                             f"or names {self.names[:8]}{'...' if self.n_bones > 8 else ''}")
+        if not 0 <= i < self.n_bones:
+            raise ValueError(f"bone {key!r} does not exist; bones are 0..{self.n_bones - 1}")
+        return i
+
+    def __repr__(self) -> str:
+        return (f"Skeleton({self.n_joints} joints, {self.n_bones} bones, {self.dim}D, "
+                f"{self.roots.size} root{'s' if self.roots.size != 1 else ''})")

@@ -1,0 +1,337 @@
+"""Compiled per-vertex skinning kernels (numba, multi-threaded over vertices).
+
+Every kernel reads a *top-k layout*: for vertex v, ``idx[v, :]`` holds bone
+indices sorted by decreasing weight, ``w[v, :]`` their bone weights (zero-padded;
+a zero ends the row), and ``e[v, :]`` the matching endpoint weights. Per-bone
+constants are precomputed per frame in float64 (``_frame.py``); the kernels do
+only the per-vertex work. Arithmetic is float64 whatever the storage dtype, so
+float32 storage costs accuracy only at load and store.
+
+Positions are always 3D here; 2D rigs are embedded with z = 0 (rotations about z).
+"""
+
+from __future__ import annotations
+
+import math
+from decimal import Decimal
+
+import numba as nb
+import numpy as np
+
+_JIT = dict(nogil=True, fastmath=True, cache=True, error_model="numpy")
+
+# pi/2 split for Cody-Waite reduction: the high part has a float32 mantissa, so
+# k * _PIO2_HI is exact for |k| < 2**29.
+_PIO2_HI = float(np.float32(np.pi / 2))
+_PIO2_LO = float(Decimal("1.570796326794896619231321691639751442098584699687552910487")
+                 - Decimal(_PIO2_HI))
+_TWO_OVER_PI = 2.0 / np.pi
+# Taylor coefficients: sin r = r + r^3 (S1 + r^2 S2 + ...), cos r = 1 + r^2 (C1 + r^2 C2 + ...)
+_S1, _S2, _S3, _S4, _S5, _S6, _S7, _S8 = (
+    (-1.0) ** m / math.factorial(2 * m + 1) for m in range(1, 9))
+_C1, _C2, _C3, _C4, _C5, _C6, _C7, _C8, _C9 = (
+    (-1.0) ** m / math.factorial(2 * m) for m in range(1, 10))
+
+
+@nb.njit(inline="always", **_JIT)
+def _sincos(x):
+    """(sin x, cos x) to ~1e-16 absolute error for |x| < 1e8, branch-light.
+
+    Range reduction by pi/2, then Taylor polynomials on |r| <= pi/4 (terms up to
+    r**17 / r**18, truncation error below 1e-19). Cheaper than two libm calls and
+    exact at x = 0 (sin = 0, cos = 1), which keeps the rest pose exact.
+    """
+    k = math.floor(x * _TWO_OVER_PI + 0.5)
+    r = (x - k * _PIO2_HI) - k * _PIO2_LO
+    r2 = r * r
+    s = r + r * r2 * (_S1 + r2 * (_S2 + r2 * (_S3 + r2 * (_S4 + r2 * (
+        _S5 + r2 * (_S6 + r2 * (_S7 + r2 * _S8)))))))
+    c = 1.0 + r2 * (_C1 + r2 * (_C2 + r2 * (_C3 + r2 * (_C4 + r2 * (
+        _C5 + r2 * (_C6 + r2 * (_C7 + r2 * (_C8 + r2 * _C9))))))))
+    q = int(k) & 3
+    if q == 0:
+        return s, c
+    if q == 1:
+        return c, -s
+    if q == 2:
+        return -s, -c
+    return -c, s
+
+
+@nb.njit(inline="always", **_JIT)
+def _normalize3(x, y, z):
+    n = math.sqrt(x * x + y * y + z * z)
+    if n > 0.0:
+        return x / n, y / n, z / n
+    return x, y, z
+
+
+@nb.njit(inline="always", **_JIT)
+def _cofactor_apply(m0, m1, m2, m3, m4, m5, m6, m7, m8, nx, ny, nz):
+    """cof(M) n = det(M) M^-T n, normalised: the normal of a linearly mapped surface."""
+    c00 = m4 * m8 - m5 * m7
+    c01 = m5 * m6 - m3 * m8
+    c02 = m3 * m7 - m4 * m6
+    c10 = m2 * m7 - m1 * m8
+    c11 = m0 * m8 - m2 * m6
+    c12 = m1 * m6 - m0 * m7
+    c20 = m1 * m5 - m2 * m4
+    c21 = m2 * m3 - m0 * m5
+    c22 = m0 * m4 - m1 * m3
+    return _normalize3(c00 * nx + c01 * ny + c02 * nz,
+                       c10 * nx + c11 * ny + c12 * nz,
+                       c20 * nx + c21 * ny + c22 * nz)
+
+
+# --------------------------------------------------------------------------- lbs
+@nb.njit(parallel=True, **_JIT)
+def lbs(V, idx, w, M, out, N, Nout, want_normals):
+    """p' = sum_i w_i (A_i p + t_i) with M[i] = (A_i row-major (9), t_i (3))."""
+    n, k = idx.shape
+    for v in nb.prange(n):
+        px = np.float64(V[v, 0])
+        py = np.float64(V[v, 1])
+        pz = np.float64(V[v, 2])
+        m0 = m1 = m2 = m3 = m4 = m5 = m6 = m7 = m8 = m9 = m10 = m11 = 0.0
+        for j in range(k):
+            wj = np.float64(w[v, j])
+            if wj == 0.0:
+                break
+            b = idx[v, j]
+            m0 += wj * M[b, 0]
+            m1 += wj * M[b, 1]
+            m2 += wj * M[b, 2]
+            m3 += wj * M[b, 3]
+            m4 += wj * M[b, 4]
+            m5 += wj * M[b, 5]
+            m6 += wj * M[b, 6]
+            m7 += wj * M[b, 7]
+            m8 += wj * M[b, 8]
+            m9 += wj * M[b, 9]
+            m10 += wj * M[b, 10]
+            m11 += wj * M[b, 11]
+        out[v, 0] = m0 * px + m1 * py + m2 * pz + m9
+        out[v, 1] = m3 * px + m4 * py + m5 * pz + m10
+        out[v, 2] = m6 * px + m7 * py + m8 * pz + m11
+        if want_normals:
+            a, b2, c2 = _cofactor_apply(m0, m1, m2, m3, m4, m5, m6, m7, m8, np.float64(N[v, 0]),
+                                        np.float64(N[v, 1]), np.float64(N[v, 2]))
+            Nout[v, 0] = a
+            Nout[v, 1] = b2
+            Nout[v, 2] = c2
+
+
+# --------------------------------------------------------------------------- dual quaternions
+@nb.njit(inline="always", **_JIT)
+def _dq_apply(r0, r1, r2, r3, d0, d1, d2, d3, px, py, pz):
+    """Normalise the blended dual quaternion (r, d) and apply it to p."""
+    nn = r0 * r0 + r1 * r1 + r2 * r2 + r3 * r3
+    inv = 1.0 / math.sqrt(nn)
+    r0 *= inv
+    r1 *= inv
+    r2 *= inv
+    r3 *= inv
+    d0 *= inv
+    d1 *= inv
+    d2 *= inv
+    d3 *= inv
+    # rotate: p + 2 r x (r x p + r0 p)
+    cx = r2 * pz - r3 * py + r0 * px
+    cy = r3 * px - r1 * pz + r0 * py
+    cz = r1 * py - r2 * px + r0 * pz
+    qx = px + 2.0 * (r2 * cz - r3 * cy)
+    qy = py + 2.0 * (r3 * cx - r1 * cz)
+    qz = pz + 2.0 * (r1 * cy - r2 * cx)
+    # translation 2 (r0 d_v - d0 r_v + r_v x d_v)
+    tx = 2.0 * (r0 * d1 - d0 * r1 + r2 * d3 - r3 * d2)
+    ty = 2.0 * (r0 * d2 - d0 * r2 + r3 * d1 - r1 * d3)
+    tz = 2.0 * (r0 * d3 - d0 * r3 + r1 * d2 - r2 * d1)
+    return qx + tx, qy + ty, qz + tz, r0, r1, r2, r3
+
+
+@nb.njit(inline="always", **_JIT)
+def _rotate_normal(r0, r1, r2, r3, nx, ny, nz):
+    cx = r2 * nz - r3 * ny + r0 * nx
+    cy = r3 * nx - r1 * nz + r0 * ny
+    cz = r1 * ny - r2 * nx + r0 * nz
+    return (nx + 2.0 * (r2 * cz - r3 * cy), ny + 2.0 * (r3 * cx - r1 * cz),
+            nz + 2.0 * (r1 * cy - r2 * cx))
+
+
+@nb.njit(parallel=True, **_JIT)
+def dqs(V, idx, w, Q, S, has_stretch, out, N, Nout, want_normals):
+    """Dual quaternion skinning; Q[i] = (qr (4), qd (4)).
+
+    Stretches are blended linearly in rest space first (Kavan et al. 2008, non-rigid
+    bone transforms): p_s = p + sum_i w_i c_i (u_i . p - u_i . a_i), with
+    S[i] = (c_i = (sigma_i - 1) u_i (3), u_i (3), u_i . a_i).
+    """
+    n, k = idx.shape
+    for v in nb.prange(n):
+        px = np.float64(V[v, 0])
+        py = np.float64(V[v, 1])
+        pz = np.float64(V[v, 2])
+        b0 = idx[v, 0]
+        sx = px
+        sy = py
+        sz = pz
+        r0 = r1 = r2 = r3 = d0 = d1 = d2 = d3 = 0.0
+        for j in range(k):
+            wj = np.float64(w[v, j])
+            if wj == 0.0:
+                break
+            b = idx[v, j]
+            if has_stretch:
+                f = wj * (S[b, 3] * px + S[b, 4] * py + S[b, 5] * pz - S[b, 6])
+                sx += f * S[b, 0]
+                sy += f * S[b, 1]
+                sz += f * S[b, 2]
+            # pivot hemisphere: flip into the side of the largest-weight bone
+            dot = Q[b, 0] * Q[b0, 0] + Q[b, 1] * Q[b0, 1] + Q[b, 2] * Q[b0, 2] + Q[b, 3] * Q[b0, 3]
+            if dot < 0.0:
+                wj = -wj
+            r0 += wj * Q[b, 0]
+            r1 += wj * Q[b, 1]
+            r2 += wj * Q[b, 2]
+            r3 += wj * Q[b, 3]
+            d0 += wj * Q[b, 4]
+            d1 += wj * Q[b, 5]
+            d2 += wj * Q[b, 6]
+            d3 += wj * Q[b, 7]
+        x, y, z, r0, r1, r2, r3 = _dq_apply(r0, r1, r2, r3, d0, d1, d2, d3, sx, sy, sz)
+        out[v, 0] = x
+        out[v, 1] = y
+        out[v, 2] = z
+        if want_normals:
+            a, b2, c2 = _rotate_normal(r0, r1, r2, r3, np.float64(N[v, 0]),
+                                       np.float64(N[v, 1]), np.float64(N[v, 2]))
+            Nout[v, 0] = a
+            Nout[v, 1] = b2
+            Nout[v, 2] = c2
+
+
+# --------------------------------------------------------------------------- stbs-lbs
+@nb.njit(parallel=True, **_JIT)
+def stbs_lbs(V, idx, w, e, P, out, N, Nout, want_normals):
+    """Eq. 5: p' = sum_i w_i [a'_i + R_i K_i(e_i) (e_i s_i + p - a_i)].
+
+    Since K_i turns about u_i and s_i is parallel to u_i, with x = p - a_i:
+    R_i K_i (e s_i + x) = e (sigma_i - 1) l_i R_i u_i + cos(phi) R_i x
+    + sin(phi) R_i [u_i]x x + (1 - cos(phi)) (u_i . x) R_i u_i  (Rodrigues),
+    phi = (1 - e) theta_a + e theta_b. P[i] = (R (9), R[u]x (9), Ru (3), a (3),
+    a' (3), (sigma-1) l Ru (3), u (3), theta_a, theta_b - theta_a).
+    """
+    n, k = idx.shape
+    for v in nb.prange(n):
+        px = np.float64(V[v, 0])
+        py = np.float64(V[v, 1])
+        pz = np.float64(V[v, 2])
+        ox = oy = oz = 0.0
+        m0 = m1 = m2 = m3 = m4 = m5 = m6 = m7 = m8 = 0.0
+        for j in range(k):
+            wj = np.float64(w[v, j])
+            if wj == 0.0:
+                break
+            b = idx[v, j]
+            ej = np.float64(e[v, j])
+            sn, cs = _sincos(P[b, 33] + ej * P[b, 34])
+            xx = px - P[b, 21]
+            xy = py - P[b, 22]
+            xz = pz - P[b, 23]
+            ux = P[b, 30] * xx + P[b, 31] * xy + P[b, 32] * xz
+            g = (1.0 - cs) * ux
+            ox += wj * (P[b, 24] + ej * P[b, 27] + g * P[b, 18]
+                        + cs * (P[b, 0] * xx + P[b, 1] * xy + P[b, 2] * xz)
+                        + sn * (P[b, 9] * xx + P[b, 10] * xy + P[b, 11] * xz))
+            oy += wj * (P[b, 25] + ej * P[b, 28] + g * P[b, 19]
+                        + cs * (P[b, 3] * xx + P[b, 4] * xy + P[b, 5] * xz)
+                        + sn * (P[b, 12] * xx + P[b, 13] * xy + P[b, 14] * xz))
+            oz += wj * (P[b, 26] + ej * P[b, 29] + g * P[b, 20]
+                        + cs * (P[b, 6] * xx + P[b, 7] * xy + P[b, 8] * xz)
+                        + sn * (P[b, 15] * xx + P[b, 16] * xy + P[b, 17] * xz))
+            if want_normals:
+                # blended linear part sum_i w_i R_i K_i(e_i), for the normals
+                wc = wj * cs
+                ws = wj * sn
+                wh = wj * (1.0 - cs)
+                m0 += wc * P[b, 0] + ws * P[b, 9] + wh * P[b, 18] * P[b, 30]
+                m1 += wc * P[b, 1] + ws * P[b, 10] + wh * P[b, 18] * P[b, 31]
+                m2 += wc * P[b, 2] + ws * P[b, 11] + wh * P[b, 18] * P[b, 32]
+                m3 += wc * P[b, 3] + ws * P[b, 12] + wh * P[b, 19] * P[b, 30]
+                m4 += wc * P[b, 4] + ws * P[b, 13] + wh * P[b, 19] * P[b, 31]
+                m5 += wc * P[b, 5] + ws * P[b, 14] + wh * P[b, 19] * P[b, 32]
+                m6 += wc * P[b, 6] + ws * P[b, 15] + wh * P[b, 20] * P[b, 30]
+                m7 += wc * P[b, 7] + ws * P[b, 16] + wh * P[b, 20] * P[b, 31]
+                m8 += wc * P[b, 8] + ws * P[b, 17] + wh * P[b, 20] * P[b, 32]
+        out[v, 0] = ox
+        out[v, 1] = oy
+        out[v, 2] = oz
+        if want_normals:
+            a, b2, c2 = _cofactor_apply(m0, m1, m2, m3, m4, m5, m6, m7, m8, np.float64(N[v, 0]),
+                                        np.float64(N[v, 1]), np.float64(N[v, 2]))
+            Nout[v, 0] = a
+            Nout[v, 1] = b2
+            Nout[v, 2] = c2
+
+
+# --------------------------------------------------------------------------- stbs-dqs
+@nb.njit(parallel=True, **_JIT)
+def stbs_dqs(V, idx, w, e, P, out, N, Nout, want_normals):
+    """Eq. 6 blended as dual quaternions.
+
+    Per vertex and bone, the rigid map x -> a' + R K(e s - a) + R K x has rotation
+    qR * qK with qK = (cos h, sin h u), h = phi / 2, i.e. cos h qR + sin h (qR * (0, u)),
+    and translation t0 + e st - cos(phi) R a_perp - sin(phi) R (u x a) where
+    t0 = a' - (u . a) R u and st = (sigma - 1) l R u. P[i] = (qR (4), qR*(0,u) (4),
+    t0 (3), st (3), R a_perp (3), R (u x a) (3), theta_a / 2, (theta_b - theta_a) / 2).
+    """
+    n, k = idx.shape
+    for v in nb.prange(n):
+        px = np.float64(V[v, 0])
+        py = np.float64(V[v, 1])
+        pz = np.float64(V[v, 2])
+        r0 = r1 = r2 = r3 = d0 = d1 = d2 = d3 = 0.0
+        p0 = p1 = p2 = p3 = 0.0
+        for j in range(k):
+            wj = np.float64(w[v, j])
+            if wj == 0.0:
+                break
+            b = idx[v, j]
+            ej = np.float64(e[v, j])
+            sh, ch = _sincos(P[b, 20] + ej * P[b, 21])
+            q0 = ch * P[b, 0] + sh * P[b, 4]
+            q1 = ch * P[b, 1] + sh * P[b, 5]
+            q2 = ch * P[b, 2] + sh * P[b, 6]
+            q3 = ch * P[b, 3] + sh * P[b, 7]
+            cphi = 1.0 - 2.0 * sh * sh
+            sphi = 2.0 * sh * ch
+            tx = P[b, 8] + ej * P[b, 11] - cphi * P[b, 14] - sphi * P[b, 17]
+            ty = P[b, 9] + ej * P[b, 12] - cphi * P[b, 15] - sphi * P[b, 18]
+            tz = P[b, 10] + ej * P[b, 13] - cphi * P[b, 16] - sphi * P[b, 19]
+            if j == 0:
+                p0 = q0
+                p1 = q1
+                p2 = q2
+                p3 = q3
+            elif q0 * p0 + q1 * p1 + q2 * p2 + q3 * p3 < 0.0:
+                wj = -wj
+            # qd = 0.5 (0, t) * q, folded into the weighted sum
+            hw = 0.5 * wj
+            r0 += wj * q0
+            r1 += wj * q1
+            r2 += wj * q2
+            r3 += wj * q3
+            d0 += hw * (-tx * q1 - ty * q2 - tz * q3)
+            d1 += hw * (tx * q0 + ty * q3 - tz * q2)
+            d2 += hw * (-tx * q3 + ty * q0 + tz * q1)
+            d3 += hw * (tx * q2 - ty * q1 + tz * q0)
+        x, y, z, r0, r1, r2, r3 = _dq_apply(r0, r1, r2, r3, d0, d1, d2, d3, px, py, pz)
+        out[v, 0] = x
+        out[v, 1] = y
+        out[v, 2] = z
+        if want_normals:
+            a, b2, c2 = _rotate_normal(r0, r1, r2, r3, np.float64(N[v, 0]),
+                                       np.float64(N[v, 1]), np.float64(N[v, 2]))
+            Nout[v, 0] = a
+            Nout[v, 1] = b2
+            Nout[v, 2] = c2
