@@ -1,0 +1,56 @@
+"""Seeded random rigs and poses for property tests."""
+
+from __future__ import annotations
+
+import numpy as np
+
+import stbs
+from stbs import transforms as tf
+
+
+def random_skeleton(rng: np.random.Generator, d: int, b: int = 5) -> stbs.Skeleton:
+    """A forest: a chain, a branch off it, and one free-standing bone with its own joints."""
+    C = [rng.normal(size=d)]
+    BE = []
+    for i in range(b - 1):
+        parent_joint = len(C) - 1 if i != 2 else 1  # bone 2 branches off joint 1
+        C.append(C[parent_joint] + rng.normal(size=d) * 0.6 + 0.4)
+        BE.append([parent_joint, len(C) - 1])
+    C.append(rng.normal(size=d) + 2.0)
+    C.append(C[-1] + rng.normal(size=d) + 0.5)
+    BE.append([len(C) - 2, len(C) - 1])
+    return stbs.Skeleton(np.array(C), np.array(BE))
+
+
+def random_weights(rng: np.random.Generator, n: int, b: int, k: int = 3):
+    """Dense W with k non-zeros per row summing to 1, and E in [0, 1]."""
+    W = np.zeros((n, b))
+    for v in range(n):
+        cols = rng.choice(b, size=min(k, b), replace=False)
+        W[v, cols] = rng.random(cols.size) + 0.05
+    W /= W.sum(axis=1, keepdims=True)
+    E = rng.random((n, b))
+    return W, E
+
+
+def random_rotations(rng: np.random.Generator, b: int, d: int) -> np.ndarray:
+    if d == 2:
+        return tf.rotation_2d(rng.uniform(-np.pi, np.pi, b))
+    return tf.quat_to_matrix(rng.normal(size=(b, 4)))
+
+
+def random_pose(rng: np.random.Generator, sk: stbs.Skeleton, *, stretch=True,
+                twist=True) -> stbs.Pose:
+    b, d = sk.n_bones, sk.dim
+    return stbs.Pose(
+        sk, rotations=random_rotations(rng, b, d), origins=sk.A + rng.normal(size=(b, d)) * 0.3,
+        stretch=rng.uniform(0.5, 2.0, b) if stretch else None,
+        twist=rng.uniform(-2 * np.pi, 2 * np.pi, (b, 2)) if (twist and d == 3) else None)
+
+
+def random_rig(seed: int, d: int, n: int = 400, b: int = 5):
+    rng = np.random.default_rng(seed)
+    sk = random_skeleton(rng, d, b)
+    V = rng.normal(size=(n, d)) * 1.5 + sk.C.mean(axis=0)
+    W, E = random_weights(rng, n, b)
+    return rng, sk, V, W, E
