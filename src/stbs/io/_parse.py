@@ -84,13 +84,14 @@ def _word(s: str) -> str:
     return repr(s if len(s) <= 60 else s[:57] + "...")
 
 
-def parse_block(path: Path, lines: Sequence[str], first_line: int, ncols: int, what: str,
-                *, dtype=np.float64, exact: bool = False) -> np.ndarray:
+def parse_block(path: Path, lines: Sequence[str], first_line: int | Sequence[int], ncols: int,
+                what: str, *, dtype=np.float64, exact: bool = False) -> np.ndarray:
     """Parse ``lines`` (one record each) into an (m, ncols) array of ``dtype``.
 
     Each line needs at least ``ncols`` whitespace-separated numbers (exactly
     ``ncols`` when ``exact``); further columns are ignored. ``first_line`` is
-    the 1-based line number of ``lines[0]``, used in error messages.
+    the 1-based line number of ``lines[0]`` (or one number per line), used in
+    error messages.
     """
     toks = [s.split() for s in lines]
     try:
@@ -111,7 +112,7 @@ def parse_block(path: Path, lines: Sequence[str], first_line: int, ncols: int, w
     # Slow path only to say where the problem is.
     conv = float if np.dtype(dtype).kind == "f" else int
     for k, t in enumerate(toks):
-        ln = first_line + k
+        ln = first_line + k if isinstance(first_line, int) else int(first_line[k])
         if len(t) < ncols or (exact and len(t) != ncols):
             want = f"{'exactly' if exact else 'at least'} {ncols} numbers for {what}"
             raise FormatError(path, want, f"{len(t)}: {_word(lines[k])}", line=ln)
@@ -123,4 +124,5 @@ def parse_block(path: Path, lines: Sequence[str], first_line: int, ncols: int, w
                 raise FormatError(path, f"{kind} in {what}", _word(x), line=ln) from None
             if conv is float and not np.isfinite(v):
                 raise FormatError(path, f"a finite number in {what}", _word(x), line=ln)
-    raise FormatError(path, f"numbers for {what}", "unparsable data", line=first_line)
+    ln = first_line if isinstance(first_line, int) else (first_line[0] if first_line else None)
+    raise FormatError(path, f"numbers for {what}", "unparsable data", line=ln)

@@ -64,16 +64,22 @@ def stbs_lbs_table(pose: Pose) -> np.ndarray:
 
 
 def stbs_dqs_table(pose: Pose) -> np.ndarray:
-    """(b, 22) constants of eq. 6 as dual quaternions (layout in ``_kernels.stbs_dqs``)."""
+    """(b, 19) constants of eq. 6 in dual-quaternion bilinear form (``_kernels.stbs_dqs``).
+
+    X = T(a') Rot(qR) = (R1, Xd); the map is X T(e s) Rot(qK) T(-a). With U = (0, u),
+    alpha = -(0, a) / 2: R2 = R1 U, D1 = R1 alpha + Xd, D2 = R1 U alpha + Xd U,
+    c = (sigma - 1) l / 2.
+    """
     a, u, ell, R, ap = _embed(pose)
-    qR = tf.matrix_to_quat(R)
-    qRu = tf.quat_mul(qR, np.hstack([np.zeros((len(u), 1)), u]))
-    Ru = np.einsum("bij,bj->bi", R, u)
-    ua = np.sum(u * a, axis=1)
-    t0 = ap - ua[:, None] * Ru
-    st = ((pose.stretch - 1.0) * ell)[:, None] * Ru
-    Raperp = np.einsum("bij,bj->bi", R, a - ua[:, None] * u)
-    Ruxa = np.einsum("bij,bj->bi", R, np.cross(u, a))
+    zeros = np.zeros((len(u), 1))
+    U = np.hstack([zeros, u])
+    alpha = -0.5 * np.hstack([zeros, a])
+    R1 = tf.matrix_to_quat(R)
+    Xd = 0.5 * tf.quat_mul(np.hstack([zeros, ap]), R1)
+    R2 = tf.quat_mul(R1, U)
+    D1 = tf.quat_mul(R1, alpha) + Xd
+    D2 = tf.quat_mul(R2, alpha) + tf.quat_mul(Xd, U)
+    c = 0.5 * (pose.stretch - 1.0) * ell
     th = pose.twist
     return np.ascontiguousarray(np.hstack([
-        qR, qRu, t0, st, Raperp, Ruxa, 0.5 * th[:, :1], 0.5 * (th[:, 1] - th[:, 0])[:, None]]))
+        R1, R2, D1, D2, c[:, None], 0.5 * th[:, :1], 0.5 * (th[:, 1] - th[:, 0])[:, None]]))

@@ -1,8 +1,10 @@
 """Compiled per-vertex skinning kernels (numba, multi-threaded over vertices).
 
-Every kernel reads a *top-k layout*: for vertex v, ``idx[v, :]`` holds bone
-indices sorted by decreasing weight, ``w[v, :]`` their bone weights (zero-padded;
-a zero ends the row), and ``e[v, :]`` the matching endpoint weights. Per-bone
+Every kernel reads a *top-k layout*, slot-major: for vertex v, ``idx[:, v]`` holds
+bone indices sorted by decreasing weight, ``w[:, v]`` their bone weights (zero-padded)
+and ``e[:, v]`` the matching endpoint weights. Slot-major storage makes the loads of
+one slot contiguous over vertices, so the blocked kernels' inner loops vectorise
+(with SIMD gathers from the small per-bone tables). Per-bone
 constants are precomputed per frame in float64 (``_frame.py``); the kernels do
 only the per-vertex work. Arithmetic is float64 whatever the storage dtype, so
 float32 storage costs accuracy only at load and store.
@@ -48,14 +50,15 @@ def _sincos(x):
         _S5 + r2 * (_S6 + r2 * (_S7 + r2 * _S8)))))))
     c = 1.0 + r2 * (_C1 + r2 * (_C2 + r2 * (_C3 + r2 * (_C4 + r2 * (
         _C5 + r2 * (_C6 + r2 * (_C7 + r2 * (_C8 + r2 * _C9))))))))
+    # quadrant fix-up without branches (they mispredict on per-vertex angles):
+    # q = k mod 4; odd q swaps sin and cos; sin < 0 for q in {2, 3}, cos < 0 for q in {1, 2}
     q = int(k) & 3
-    if q == 0:
-        return s, c
-    if q == 1:
-        return c, -s
-    if q == 2:
-        return -s, -c
-    return -c, s
+    odd = np.float64(q & 1)
+    ss = s + odd * (c - s)
+    cc = c + odd * (s - c)
+    sgn_s = 1.0 - 2.0 * np.float64(q >> 1)
+    sgn_c = 1.0 - 2.0 * np.float64(((q + 1) >> 1) & 1)
+    return sgn_s * ss, sgn_c * cc
 
 
 @nb.njit(inline="always", **_JIT)
@@ -86,18 +89,21 @@ def _cofactor_apply(m0, m1, m2, m3, m4, m5, m6, m7, m8, nx, ny, nz):
 # --------------------------------------------------------------------------- lbs
 @nb.njit(parallel=True, **_JIT)
 def lbs(V, idx, w, M, out, N, Nout, want_normals):
-    """p' = sum_i w_i (A_i p + t_i) with M[i] = (A_i row-major (9), t_i (3))."""
-    n, k = idx.shape
+    """p' = sum_i w_i (A_i p + t_i) with M[i] = (A_i row-major (9), t_i (3)).
+
+    Memory-bound: blend the 3x4 matrices, apply once; zero weights end the list.
+    """
+    k, n = idx.shape
     for v in nb.prange(n):
         px = np.float64(V[v, 0])
         py = np.float64(V[v, 1])
         pz = np.float64(V[v, 2])
         m0 = m1 = m2 = m3 = m4 = m5 = m6 = m7 = m8 = m9 = m10 = m11 = 0.0
         for j in range(k):
-            wj = np.float64(w[v, j])
+            wj = np.float64(w[j, v])
             if wj == 0.0:
                 break
-            b = idx[v, j]
+            b = idx[j, v]
             m0 += wj * M[b, 0]
             m1 += wj * M[b, 1]
             m2 += wj * M[b, 2]
@@ -122,6 +128,9 @@ def lbs(V, idx, w, M, out, N, Nout, want_normals):
 
 
 # --------------------------------------------------------------------------- dual quaternions
+_BLOCK = 256  # vertices per block: the slot loop is outside, the vertex loop vectorises
+
+
 @nb.njit(inline="always", **_JIT)
 def _dq_apply(r0, r1, r2, r3, d0, d1, d2, d3, px, py, pz):
     """Normalise the blended dual quaternion (r, d) and apply it to p."""
@@ -142,7 +151,7 @@ def _dq_apply(r0, r1, r2, r3, d0, d1, d2, d3, px, py, pz):
     qx = px + 2.0 * (r2 * cz - r3 * cy)
     qy = py + 2.0 * (r3 * cx - r1 * cz)
     qz = pz + 2.0 * (r1 * cy - r2 * cx)
-    # translation 2 (r0 d_v - d0 r_v + r_v x d_v)
+    # translation 2 (r0 d_v - d0 r_v + r_v x d_v); a component of d along r drops out
     tx = 2.0 * (r0 * d1 - d0 * r1 + r2 * d3 - r3 * d2)
     ty = 2.0 * (r0 * d2 - d0 * r2 + r3 * d1 - r1 * d3)
     tz = 2.0 * (r0 * d3 - d0 * r3 + r1 * d2 - r2 * d1)
@@ -158,29 +167,49 @@ def _rotate_normal(r0, r1, r2, r3, nx, ny, nz):
             nz + 2.0 * (r1 * cy - r2 * cx))
 
 
+@nb.njit(inline="always", **_JIT)
+def _dq_finish(lo, m, X, xoff, a0, a1, a2, a3, a4, a5, a6, a7, out, N, Nout, want_normals):
+    """Apply one block's blended dual quaternions to points X[xoff + i] (and turn normals)."""
+    for i in range(m):
+        v = lo + i
+        x, y, z, r0, r1, r2, r3 = _dq_apply(a0[i], a1[i], a2[i], a3[i], a4[i], a5[i], a6[i],
+                                            a7[i], np.float64(X[xoff + i, 0]),
+                                            np.float64(X[xoff + i, 1]), np.float64(X[xoff + i, 2]))
+        out[v, 0] = x
+        out[v, 1] = y
+        out[v, 2] = z
+        if want_normals:
+            a, b2, c2 = _rotate_normal(r0, r1, r2, r3, np.float64(N[v, 0]),
+                                       np.float64(N[v, 1]), np.float64(N[v, 2]))
+            Nout[v, 0] = a
+            Nout[v, 1] = b2
+            Nout[v, 2] = c2
+
+
 @nb.njit(parallel=True, **_JIT)
 def dqs(V, idx, w, Q, S, has_stretch, out, N, Nout, want_normals):
     """Dual quaternion skinning; Q[i] = (qr (4), qd (4)).
 
     Stretches are blended linearly in rest space first (Kavan et al. 2008, non-rigid
     bone transforms): p_s = p + sum_i w_i c_i (u_i . p - u_i . a_i), with
-    S[i] = (c_i = (sigma_i - 1) u_i (3), u_i (3), u_i . a_i).
+    S[i] = (c_i = (sigma_i - 1) u_i (3), u_i (3), u_i . a_i). Per-vertex scalar loop:
+    with only table look-ups per bone, scalar loads beat SIMD gathers here (measured).
     """
-    n, k = idx.shape
+    k, n = idx.shape
     for v in nb.prange(n):
         px = np.float64(V[v, 0])
         py = np.float64(V[v, 1])
         pz = np.float64(V[v, 2])
-        b0 = idx[v, 0]
+        b0 = idx[0, v]
         sx = px
         sy = py
         sz = pz
         r0 = r1 = r2 = r3 = d0 = d1 = d2 = d3 = 0.0
         for j in range(k):
-            wj = np.float64(w[v, j])
+            wj = np.float64(w[j, v])
             if wj == 0.0:
                 break
-            b = idx[v, j]
+            b = idx[j, v]
             if has_stretch:
                 f = wj * (S[b, 3] * px + S[b, 4] * py + S[b, 5] * pz - S[b, 6])
                 sx += f * S[b, 0]
@@ -188,8 +217,7 @@ def dqs(V, idx, w, Q, S, has_stretch, out, N, Nout, want_normals):
                 sz += f * S[b, 2]
             # pivot hemisphere: flip into the side of the largest-weight bone
             dot = Q[b, 0] * Q[b0, 0] + Q[b, 1] * Q[b0, 1] + Q[b, 2] * Q[b0, 2] + Q[b, 3] * Q[b0, 3]
-            if dot < 0.0:
-                wj = -wj
+            wj = wj if dot >= 0.0 else -wj
             r0 += wj * Q[b, 0]
             r1 += wj * Q[b, 1]
             r2 += wj * Q[b, 2]
@@ -220,8 +248,10 @@ def stbs_lbs(V, idx, w, e, P, out, N, Nout, want_normals):
     + sin(phi) R_i [u_i]x x + (1 - cos(phi)) (u_i . x) R_i u_i  (Rodrigues),
     phi = (1 - e) theta_a + e theta_b. P[i] = (R (9), R[u]x (9), Ru (3), a (3),
     a' (3), (sigma-1) l Ru (3), u (3), theta_a, theta_b - theta_a).
+    Per-vertex scalar loop: with 35 table entries per bone, scalar loads beat SIMD
+    gathers (measured side by side).
     """
-    n, k = idx.shape
+    k, n = idx.shape
     for v in nb.prange(n):
         px = np.float64(V[v, 0])
         py = np.float64(V[v, 1])
@@ -229,17 +259,16 @@ def stbs_lbs(V, idx, w, e, P, out, N, Nout, want_normals):
         ox = oy = oz = 0.0
         m0 = m1 = m2 = m3 = m4 = m5 = m6 = m7 = m8 = 0.0
         for j in range(k):
-            wj = np.float64(w[v, j])
+            wj = np.float64(w[j, v])
             if wj == 0.0:
                 break
-            b = idx[v, j]
-            ej = np.float64(e[v, j])
+            b = idx[j, v]
+            ej = np.float64(e[j, v])
             sn, cs = _sincos(P[b, 33] + ej * P[b, 34])
             xx = px - P[b, 21]
             xy = py - P[b, 22]
             xz = pz - P[b, 23]
-            ux = P[b, 30] * xx + P[b, 31] * xy + P[b, 32] * xz
-            g = (1.0 - cs) * ux
+            g = (1.0 - cs) * (P[b, 30] * xx + P[b, 31] * xy + P[b, 32] * xz)
             ox += wj * (P[b, 24] + ej * P[b, 27] + g * P[b, 18]
                         + cs * (P[b, 0] * xx + P[b, 1] * xy + P[b, 2] * xz)
                         + sn * (P[b, 9] * xx + P[b, 10] * xy + P[b, 11] * xz))
@@ -277,61 +306,61 @@ def stbs_lbs(V, idx, w, e, P, out, N, Nout, want_normals):
 # --------------------------------------------------------------------------- stbs-dqs
 @nb.njit(parallel=True, **_JIT)
 def stbs_dqs(V, idx, w, e, P, out, N, Nout, want_normals):
-    """Eq. 6 blended as dual quaternions.
+    """Eq. 6 blended as dual quaternions, in bilinear form.
 
-    Per vertex and bone, the rigid map x -> a' + R K(e s - a) + R K x has rotation
-    qR * qK with qK = (cos h, sin h u), h = phi / 2, i.e. cos h qR + sin h (qR * (0, u)),
-    and translation t0 + e st - cos(phi) R a_perp - sin(phi) R (u x a) where
-    t0 = a' - (u . a) R u and st = (sigma - 1) l R u. P[i] = (qR (4), qR*(0,u) (4),
-    t0 (3), st (3), R a_perp (3), R (u x a) (3), theta_a / 2, (theta_b - theta_a) / 2).
+    Bone i's rigid map at endpoint weight e is the dual-quaternion product
+    T(a') Rot(qR) T(e s) Rot(qK) T(-a) with qK = (cos h, sin h u), h = phi / 2.
+    Since s is parallel to u, T(e s) commutes with qK, and expanding gives
+    real = cos h R1 + sin h R2 and dual = cos h D1 + sin h D2 + e c (cos h R2 - sin h R1)
+    with per-bone constants R1 = qR, R2 = qR * (0, u), D1, D2 and c = (sigma - 1) l / 2
+    (``_frame.stbs_dqs_table``). P[i] = (R1, R2, D1, D2, c, theta_a / 2,
+    (theta_b - theta_a) / 2).
     """
-    n, k = idx.shape
-    for v in nb.prange(n):
-        px = np.float64(V[v, 0])
-        py = np.float64(V[v, 1])
-        pz = np.float64(V[v, 2])
-        r0 = r1 = r2 = r3 = d0 = d1 = d2 = d3 = 0.0
-        p0 = p1 = p2 = p3 = 0.0
+    k, n = idx.shape
+    nblk = (n + _BLOCK - 1) // _BLOCK
+    for blk in nb.prange(nblk):
+        lo = blk * _BLOCK
+        m = min(n, lo + _BLOCK) - lo
+        a0 = np.zeros(_BLOCK)
+        a1 = np.zeros(_BLOCK)
+        a2 = np.zeros(_BLOCK)
+        a3 = np.zeros(_BLOCK)
+        a4 = np.zeros(_BLOCK)
+        a5 = np.zeros(_BLOCK)
+        a6 = np.zeros(_BLOCK)
+        a7 = np.zeros(_BLOCK)
+        p0 = np.zeros(_BLOCK)
+        p1 = np.zeros(_BLOCK)
+        p2 = np.zeros(_BLOCK)
+        p3 = np.zeros(_BLOCK)
         for j in range(k):
-            wj = np.float64(w[v, j])
-            if wj == 0.0:
-                break
-            b = idx[v, j]
-            ej = np.float64(e[v, j])
-            sh, ch = _sincos(P[b, 20] + ej * P[b, 21])
-            q0 = ch * P[b, 0] + sh * P[b, 4]
-            q1 = ch * P[b, 1] + sh * P[b, 5]
-            q2 = ch * P[b, 2] + sh * P[b, 6]
-            q3 = ch * P[b, 3] + sh * P[b, 7]
-            cphi = 1.0 - 2.0 * sh * sh
-            sphi = 2.0 * sh * ch
-            tx = P[b, 8] + ej * P[b, 11] - cphi * P[b, 14] - sphi * P[b, 17]
-            ty = P[b, 9] + ej * P[b, 12] - cphi * P[b, 15] - sphi * P[b, 18]
-            tz = P[b, 10] + ej * P[b, 13] - cphi * P[b, 16] - sphi * P[b, 19]
-            if j == 0:
-                p0 = q0
-                p1 = q1
-                p2 = q2
-                p3 = q3
-            elif q0 * p0 + q1 * p1 + q2 * p2 + q3 * p3 < 0.0:
-                wj = -wj
-            # qd = 0.5 (0, t) * q, folded into the weighted sum
-            hw = 0.5 * wj
-            r0 += wj * q0
-            r1 += wj * q1
-            r2 += wj * q2
-            r3 += wj * q3
-            d0 += hw * (-tx * q1 - ty * q2 - tz * q3)
-            d1 += hw * (tx * q0 + ty * q3 - tz * q2)
-            d2 += hw * (-tx * q3 + ty * q0 + tz * q1)
-            d3 += hw * (tx * q2 - ty * q1 + tz * q0)
-        x, y, z, r0, r1, r2, r3 = _dq_apply(r0, r1, r2, r3, d0, d1, d2, d3, px, py, pz)
-        out[v, 0] = x
-        out[v, 1] = y
-        out[v, 2] = z
-        if want_normals:
-            a, b2, c2 = _rotate_normal(r0, r1, r2, r3, np.float64(N[v, 0]),
-                                       np.float64(N[v, 1]), np.float64(N[v, 2]))
-            Nout[v, 0] = a
-            Nout[v, 1] = b2
-            Nout[v, 2] = c2
+            for i in range(m):
+                v = lo + i
+                wj = np.float64(w[j, v])
+                b = idx[j, v]
+                ej = np.float64(e[j, v])
+                sh, ch = _sincos(P[b, 17] + ej * P[b, 18])
+                q0 = ch * P[b, 0] + sh * P[b, 4]
+                q1 = ch * P[b, 1] + sh * P[b, 5]
+                q2 = ch * P[b, 2] + sh * P[b, 6]
+                q3 = ch * P[b, 3] + sh * P[b, 7]
+                f = ej * P[b, 16]
+                fc = f * ch
+                fs = f * sh
+                if j == 0:
+                    p0[i] = q0
+                    p1[i] = q1
+                    p2[i] = q2
+                    p3[i] = q3
+                # pivot hemisphere: flip into the side of the largest-weight bone
+                dot = q0 * p0[i] + q1 * p1[i] + q2 * p2[i] + q3 * p3[i]
+                wj = wj if dot >= 0.0 else -wj
+                a0[i] += wj * q0
+                a1[i] += wj * q1
+                a2[i] += wj * q2
+                a3[i] += wj * q3
+                a4[i] += wj * (ch * P[b, 8] + sh * P[b, 12] + fc * P[b, 4] - fs * P[b, 0])
+                a5[i] += wj * (ch * P[b, 9] + sh * P[b, 13] + fc * P[b, 5] - fs * P[b, 1])
+                a6[i] += wj * (ch * P[b, 10] + sh * P[b, 14] + fc * P[b, 6] - fs * P[b, 2])
+                a7[i] += wj * (ch * P[b, 11] + sh * P[b, 15] + fc * P[b, 7] - fs * P[b, 3])
+        _dq_finish(lo, m, V, lo, a0, a1, a2, a3, a4, a5, a6, a7, out, N, Nout, want_normals)

@@ -14,11 +14,12 @@ class TopK:
 
     Attributes
     ----------
-    idx : (n, k) uint8/uint16/int32
-        Bone indices sorted by decreasing weight (smallest dtype that holds b).
-    w : (n, k) float
-        Bone weights, zero-padded; rows sum to 1.
-    e : (n, k) float or None
+    idx : (k, n) uint8/uint16/int32
+        Slot-major bone indices, per vertex sorted by decreasing weight (smallest
+        dtype that holds b; padding slots point at bone 0 with weight 0).
+    w : (k, n) float
+        Bone weights, zero-padded; each column sums to 1.
+    e : (k, n) float or None
         Endpoint weights of the same (vertex, bone) pairs.
     """
 
@@ -28,7 +29,7 @@ class TopK:
 
     @property
     def k(self) -> int:
-        return int(self.idx.shape[1])
+        return int(self.idx.shape[0])
 
     @property
     def nbytes(self) -> int:
@@ -108,6 +109,6 @@ def top_k(W, E=None, *, max_influences: int | None = None, dtype=np.float64) -> 
     if E is not None:
         rows = np.broadcast_to(np.arange(n)[:, None], idx.shape)
         e = np.where(w > 0, _gather(E, rows.ravel(), idx.ravel()).reshape(idx.shape), 0.0)
-        e = np.ascontiguousarray(e, dtype=dtype)
-    return TopK(idx=np.ascontiguousarray(idx, dtype=_index_dtype(b)),
-                w=np.ascontiguousarray(w, dtype=dtype), e=e)
+        e = np.ascontiguousarray(e.T, dtype=dtype)
+    return TopK(idx=np.ascontiguousarray(idx.T, dtype=_index_dtype(b)),
+                w=np.ascontiguousarray(w.T, dtype=dtype), e=e)

@@ -1,0 +1,46 @@
+"""File input and output: meshes, skeletons, weights and rigs (DESIGN §6).
+
+Readers raise :class:`FileNotFoundError` for a missing file, :class:`ValueError`
+for an unknown extension (listing the supported ones) and :class:`FormatError`
+(a ``ValueError``) for a malformed file, naming the file, the line, what was
+expected and what was found. Writers write to a temporary file in the
+destination folder and rename it (:func:`atomic_open`, :func:`atomic_save`).
+
+=====================  ==============================================
+function               formats
+=====================  ==============================================
+:func:`read_mesh`      .obj .off .ply .stl .mesh .msh .vtk
+:func:`write_mesh`     .obj .off .ply
+:func:`read_tgf`       .tgf (libigl, 1-based, optional bone flags)
+:func:`write_tgf`      .tgf
+:func:`read_bf`        .bf (libigl 5 columns, FAST 27 columns)
+:func:`read_skeleton`  .tgf .bf  -> :class:`stbs.Skeleton`
+:func:`read_dmat`      .dmat (ASCII and binary)
+:func:`write_dmat`     .dmat
+:func:`read_weights`   .dmat .npy .npz .csv
+:func:`load_rig`       .npz rig, format version 1 (see :mod:`stbs.io.rig`)
+:func:`save_rig`       .npz rig
+=====================  ==============================================
+"""
+
+from ._atomic import atomic_open, atomic_save, atomic_write
+from .bf import BoneForest, read_bf
+from .dmat import read_dmat, write_dmat
+from .errors import FormatError
+from .mesh import MESH_READ_EXTENSIONS, MESH_WRITE_EXTENSIONS, Mesh, read_mesh, write_mesh
+from .rig import RIG_VERSION, Rig, load_rig, save_rig
+from .shared_data import data_dir
+from .skeleton_file import SKELETON_READ_EXTENSIONS, read_skeleton
+from .tgf import read_tgf, write_tgf
+from .weights import WEIGHT_READ_EXTENSIONS, read_weights
+
+__all__ = [
+    "FormatError",
+    "Mesh", "read_mesh", "write_mesh", "MESH_READ_EXTENSIONS", "MESH_WRITE_EXTENSIONS",
+    "read_tgf", "write_tgf", "BoneForest", "read_bf", "read_skeleton",
+    "SKELETON_READ_EXTENSIONS",
+    "read_dmat", "write_dmat", "read_weights", "WEIGHT_READ_EXTENSIONS",
+    "Rig", "save_rig", "load_rig", "RIG_VERSION",
+    "atomic_open", "atomic_save", "atomic_write",
+    "data_dir",
+]

@@ -1,0 +1,369 @@
+"""The native rig file: one ``.npz`` archive with documented, versioned keys.
+
+A *rig* bundles the rest mesh, the skeleton and the weights (DESIGN §6). The
+file is a plain NumPy ``.npz`` (zip of ``.npy`` arrays, written compressed),
+readable without stbs and never containing pickled objects.
+
+Format version 1
+----------------
+
+==================================  ================  ========  ==============================
+key                                 shape, dtype      required  meaning
+==================================  ================  ========  ==============================
+``stbs_rig_version``                (), int64         yes       format version, ``1``
+``V``                               (n, d) float64    yes       rest vertex positions, d = 2|3
+``F``                               (f, 3) int64      no        triangles, 0-based
+``T``                               (t, 4) int64      no        tetrahedra, 0-based
+``C``                               (j, d) float64    yes       rest joint positions
+``BE``                              (b, 2) int64      yes       bones as 0-based joint pairs
+``names``                           (b,) unicode      no        bone names
+``W``                               (n, b) float64    yes [1]_  bone weights, dense
+``W_data`` ``W_indices``            CSR arrays        yes [1]_  bone weights, sparse (CSR):
+``W_indptr`` ``W_shape``                                        float64 data, int64 indices
+                                                                and indptr, shape ``[n, b]``
+``E`` / ``E_data`` ``E_indices``    as ``W``          no        endpoint weights, dense or
+``E_indptr`` ``E_shape``                                        sparse (CSR)
+``meta_json``                       (), unicode       no        JSON object: free metadata
+==================================  ================  ========  ==============================
+
+.. [1] Exactly one of the two forms of ``W`` (dense ``W`` or the four ``W_*``
+   keys) is present; the same holds for ``E`` when it is stored.
+
+An absent optional key means None (no ``F``, no ``T``, default names, no
+``E``, empty metadata). Readers check the version first and ignore keys not
+in this table; any change to the meaning of a key gets a new version number.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import zipfile
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import scipy.sparse as sp
+
+from .. import _checks
+from ..skeleton import Skeleton
+from ._atomic import atomic_open
+from ._parse import input_path, suffix
+from .errors import FormatError
+
+__all__ = ["Rig", "save_rig", "load_rig", "RIG_VERSION"]
+
+#: The format version :func:`save_rig` writes and :func:`load_rig` reads.
+RIG_VERSION = 1
+
+_SPARSE_PARTS = ("data", "indices", "indptr", "shape")
+
+
+def _weights(name: str, X: Any, n: int, b: int):
+    """Dense (n, b) float64 or CSR float64 of that shape, finite; values not constrained."""
+    if X is None:
+        return None
+    if sp.issparse(X):
+        X = sp.csr_array(X, dtype=np.float64)
+        if X.shape != (n, b):
+            raise ValueError(f"{name} must have shape ({n}, {b}) (vertices, bones), "
+                             f"got {X.shape}")
+        if not np.all(np.isfinite(X.data)):
+            raise ValueError(f"{name} must be finite, got non-finite stored values")
+        X.sort_indices()
+        return X
+    if np.ndim(X) == 1 and b == 1:
+        X = np.asarray(X).reshape(-1, 1)
+    X = _checks.real_array(name, X, ndim=2)
+    if X.shape != (n, b):
+        raise ValueError(f"{name} must have shape ({n}, {b}) (vertices, bones), got {X.shape}")
+    return X
+
+
+def _elements(name: str, X: Any, k: int, n: int):
+    if X is None:
+        return None
+    X = _checks.index_array(name, X, ndim=2, shape=(None, k))
+    if X.size and (X.min() < 0 or X.max() >= n):
+        bad = int(X.min()) if X.min() < 0 else int(X.max())
+        raise ValueError(f"{name} must hold vertex indices in 0..{n - 1}, got {bad}")
+    return X
+
+
+@dataclass(kw_only=True, eq=False)
+class Rig:
+    """A rest mesh with its skeleton and weights.
+
+    Parameters
+    ----------
+    V : (n, d) float
+        Rest vertex positions, d = 2 or 3.
+    F : (f, 3) int, optional
+        Triangles.
+    T : (t, 4) int, optional
+        Tetrahedra.
+    C : (j, d) float
+        Rest joint positions (same d as ``V``).
+    BE : (b, 2) int
+        Bones as joint pairs; must form a valid :class:`stbs.Skeleton`.
+    names : sequence of b str, optional
+        Bone names.
+    W : (n, b) float, dense or scipy.sparse
+        Bone weights.
+    E : (n, b) float, dense or scipy.sparse, optional
+        Endpoint weights.
+    meta : dict, optional
+        Free metadata (must be JSON-serialisable to be saved), e.g. how the
+        weights were computed.
+
+    Raises
+    ------
+    ValueError
+        Shapes that do not fit together (``W`` not (n, b), ``C`` of another
+        dimension than ``V``, indices out of range), non-finite values, or an
+        invalid skeleton; the message names the argument.
+
+    Notes
+    -----
+    Only shapes and finiteness are checked here: the partition of unity of
+    ``W`` and the range of ``E`` are checked where the weights are used, so a
+    rig can hold painted, unnormalised weights as found in real files.
+    """
+
+    V: Any
+    F: Any = None
+    T: Any = None
+    C: Any
+    BE: Any
+    names: list[str] | None = None
+    W: Any
+    E: Any = None
+    meta: dict = field(default_factory=dict)
+
+    def __post_init__(self):
+        self.V = _checks.vertices(self.V)
+        n, d = self.V.shape
+        self.F = _elements("F", self.F, 3, n)
+        self.T = _elements("T", self.T, 4, n)
+        sk = Skeleton(self.C, self.BE, self.names)
+        if sk.dim != d:
+            raise ValueError(f"C must have {d} columns like V (n, {d}), got {sk.C.shape}")
+        self.C = np.array(sk.C)
+        self.BE = np.array(sk.BE)
+        if self.names is not None:
+            self.names = list(sk.names)
+        b = sk.n_bones
+        self.W = _weights("W", self.W, n, b)
+        if self.W is None:
+            raise ValueError("W must be given: (n, b) bone weights")
+        self.E = _weights("E", self.E, n, b)
+        if self.meta is None:
+            self.meta = {}
+        if not isinstance(self.meta, dict):
+            raise ValueError(f"meta must be a dict, got {type(self.meta).__name__}")
+
+    @property
+    def skeleton(self) -> Skeleton:
+        """The rig's :class:`stbs.Skeleton` (built from ``C``, ``BE``, ``names``)."""
+        return Skeleton(self.C, self.BE, self.names)
+
+    @property
+    def dim(self) -> int:
+        """2 or 3."""
+        return int(self.V.shape[1])
+
+    def __repr__(self) -> str:
+        parts = [f"V={self.V.shape}"]
+        parts += [f"{k}={getattr(self, k).shape}" for k in ("F", "T")
+                  if getattr(self, k) is not None]
+        parts += [f"C={self.C.shape}", f"BE={self.BE.shape}"]
+        parts += [f"{k}={'sparse ' if sp.issparse(getattr(self, k)) else ''}"
+                  f"{getattr(self, k).shape}" for k in ("W", "E") if getattr(self, k) is not None]
+        return f"Rig({', '.join(parts)})"
+
+
+def _put_weights(out: dict, name: str, X) -> None:
+    if X is None:
+        return
+    if sp.issparse(X):
+        out[f"{name}_data"] = np.asarray(X.data, dtype=np.float64)
+        out[f"{name}_indices"] = np.asarray(X.indices, dtype=np.int64)
+        out[f"{name}_indptr"] = np.asarray(X.indptr, dtype=np.int64)
+        out[f"{name}_shape"] = np.asarray(X.shape, dtype=np.int64)
+    else:
+        out[name] = np.asarray(X, dtype=np.float64)
+
+
+def save_rig(path: str | os.PathLike, rig: Rig) -> None:
+    """Write ``rig`` to one ``.npz`` file (format version 1, see the module docs), atomically.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        Destination ending in ``.npz``; its folder must exist. The file is
+        written to a temporary name and renamed, so a failure leaves any
+        existing file untouched.
+    rig : Rig
+
+    Raises
+    ------
+    ValueError
+        ``path`` does not end in ``.npz``, ``rig`` is not a :class:`Rig`, or
+        ``rig.meta`` is not JSON-serialisable.
+    """
+    suffix(path, (".npz",), "save_rig")
+    if not isinstance(rig, Rig):
+        raise ValueError(f"rig must be a stbs.io.Rig, got {type(rig).__name__}")
+    # Re-validate: the dataclass fields may have been reassigned since construction.
+    rig = Rig(V=rig.V, F=rig.F, T=rig.T, C=rig.C, BE=rig.BE, names=rig.names, W=rig.W,
+              E=rig.E, meta=rig.meta)
+    out: dict[str, np.ndarray] = {
+        "stbs_rig_version": np.asarray(RIG_VERSION, dtype=np.int64),
+        "V": rig.V,
+        "C": rig.C,
+        "BE": rig.BE,
+    }
+    if rig.F is not None:
+        out["F"] = rig.F
+    if rig.T is not None:
+        out["T"] = rig.T
+    if rig.names is not None:
+        out["names"] = np.asarray(rig.names, dtype=np.str_).reshape(-1)
+    _put_weights(out, "W", rig.W)
+    _put_weights(out, "E", rig.E)
+    if rig.meta:
+        try:
+            text = json.dumps(rig.meta, allow_nan=False)
+        except (TypeError, ValueError) as exc:
+            raise ValueError(f"rig.meta must be JSON-serialisable, got {exc}") from None
+        out["meta_json"] = np.asarray(text, dtype=np.str_)
+    with atomic_open(path, "wb") as f:
+        np.savez_compressed(f, **out)
+
+
+def _get_weights(p, z, keys: set, name: str, required: bool):
+    parts = [f"{name}_{s}" for s in _SPARSE_PARTS]
+    have_dense = name in keys
+    have_parts = [k for k in parts if k in keys]
+    if have_dense and have_parts:
+        raise FormatError(p, f"either '{name}' or the CSR keys {parts}", "both")
+    if have_dense:
+        return z[name]
+    if have_parts:
+        missing = [k for k in parts if k not in keys]
+        if missing:
+            raise FormatError(p, f"all CSR keys {parts}", f"{missing} missing")
+        shape = z[f"{name}_shape"]
+        if shape.shape != (2,) or shape.dtype.kind not in "iu" or np.any(shape < 0):
+            raise FormatError(p, f"'{name}_shape' = [rows, cols] (2 non-negative integers)",
+                              f"{shape!r}")
+        try:
+            return sp.csr_array((z[f"{name}_data"], z[f"{name}_indices"], z[f"{name}_indptr"]),
+                                shape=tuple(int(s) for s in shape))
+        except (ValueError, TypeError) as exc:
+            raise FormatError(p, f"consistent CSR arrays for {name}", str(exc)) from None
+    if required:
+        raise FormatError(p, f"key '{name}' (dense) or {parts} (sparse)",
+                          f"keys {sorted(keys)}")
+    return None
+
+
+def load_rig(path: str | os.PathLike) -> Rig:
+    """Read a rig written by :func:`save_rig`.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        A ``.npz`` rig file (format version 1).
+
+    Returns
+    -------
+    Rig
+        ``W`` and ``E`` come back dense or sparse as they were saved; ``names``
+        and ``meta`` as saved (None and ``{}`` when absent).
+
+    Raises
+    ------
+    FileNotFoundError
+        ``path`` does not exist.
+    FormatError
+        Not an ``.npz`` archive, no or another ``stbs_rig_version``, a missing
+        required key, wrong dtypes (object arrays are never unpickled), or
+        arrays whose shapes do not fit together (e.g. ``W`` rows != ``V`` rows,
+        ``W`` columns != bones); the message names the key.
+    """
+    p = input_path(path, "rig")
+    if not zipfile.is_zipfile(p):
+        raise FormatError(p, "an .npz (zip) archive written by stbs.io.save_rig",
+                          "an empty file" if p.stat().st_size == 0 else "another kind of file")
+    try:
+        z = np.load(p, allow_pickle=False)
+    except (ValueError, OSError, zipfile.BadZipFile) as exc:
+        raise FormatError(p, "a readable .npz archive", str(exc)) from None
+    with z:
+        keys = set(z.files)
+        try:
+            return _load(p, _Arrays(p, z), keys)
+        except FormatError:
+            raise
+        except ValueError as exc:
+            # Object arrays (allow_pickle=False) and Rig's shape checks end up here.
+            raise FormatError(p, "a consistent stbs rig", str(exc)) from None
+
+
+class _Arrays:
+    """``z[key]`` with object arrays reported as a FormatError naming the key."""
+
+    def __init__(self, p, z):
+        self.p, self.z = p, z
+
+    def __getitem__(self, key: str) -> np.ndarray:
+        try:
+            return self.z[key]
+        except ValueError as exc:
+            raise FormatError(self.p, f"'{key}' as a plain numeric or unicode array (object "
+                              "arrays are never unpickled)", str(exc)) from None
+
+
+def _load(p, z: _Arrays, keys: set) -> Rig:
+    if "stbs_rig_version" not in keys:
+        raise FormatError(p, "a stbs rig with key 'stbs_rig_version'",
+                          f"keys {sorted(keys)}")
+    ver = z["stbs_rig_version"]
+    if ver.shape != () or ver.dtype.kind not in "iu":
+        raise FormatError(p, "'stbs_rig_version' as one integer", f"{ver!r}")
+    if int(ver) != RIG_VERSION:
+        raise FormatError(p, f"stbs_rig_version {RIG_VERSION} (the version this stbs reads)",
+                          f"version {int(ver)}")
+    for k in ("V", "C", "BE"):
+        if k not in keys:
+            raise FormatError(p, f"required key '{k}'", f"keys {sorted(keys)}")
+    arrays: dict[str, Any] = {}
+    for k, kinds in (("V", "f"), ("C", "f"), ("BE", "iu"), ("F", "iu"), ("T", "iu")):
+        if k in keys:
+            a = z[k]
+            if a.dtype.kind not in kinds:
+                want = "float" if kinds == "f" else "integer"
+                raise FormatError(p, f"'{k}' of {want} dtype", f"dtype {a.dtype}")
+            arrays[k] = a
+    names = None
+    if "names" in keys:
+        a = z["names"]
+        if a.dtype.kind != "U" or a.ndim != 1:
+            raise FormatError(p, "'names' as a 1-D unicode array",
+                              f"dtype {a.dtype}, shape {a.shape}")
+        names = [str(s) for s in a.tolist()]
+    meta: dict = {}
+    if "meta_json" in keys:
+        a = z["meta_json"]
+        try:
+            meta = json.loads(str(a[()])) if a.dtype.kind == "U" and a.shape == () else None
+        except json.JSONDecodeError:
+            meta = None
+        if not isinstance(meta, dict):
+            raise FormatError(p, "'meta_json' as the text of a JSON object",
+                              f"dtype {a.dtype}, shape {a.shape}")
+    W = _get_weights(p, z, keys, "W", required=True)
+    E = _get_weights(p, z, keys, "E", required=False)
+    return Rig(V=arrays["V"], F=arrays.get("F"), T=arrays.get("T"), C=arrays["C"],
+               BE=arrays["BE"], names=names, W=W, E=E, meta=meta)

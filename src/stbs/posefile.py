@@ -1,0 +1,310 @@
+"""Pose files: a :class:`stbs.Pose` described in JSON (DESIGN §6).
+
+A pose file is one JSON object in one of two forms. Bones are named by index
+(a JSON number, or a string of digits, since JSON object keys are strings) or by
+name (:meth:`stbs.Skeleton.bone_index`; a name wins over a digit string that is
+also a name). Angles are in **degrees unless** ``"degrees": false`` is given, in
+which case they are radians. Every other key is an error.
+
+Joints form (DESIGN §2, way 2: dragging joints)::
+
+    {"joints": [[x, y, z], ...], "twist": {"3": [0, 180]}, "degrees": true}
+
+``joints``
+    The posed position of every joint, (j, d), in the skeleton's joint order.
+    Each bone's rotation is the smallest rotation from its rest to its posed
+    direction and its stretch the length ratio (:meth:`stbs.Pose.from_joints`).
+``twist`` (3D only)
+    ``{bone: [start, end]}``: the twist angles theta_a, theta_b of that bone at
+    its start and end joint, about its own axis. These are *absolute* per-bone
+    values (nothing is inherited in this form); unlisted bones get ``[0, 0]``.
+
+Forward-kinematics form (DESIGN §2, way 3)::
+
+    {"rotate": {"2": {"axis": [0, 1, 0], "angle": 90}}, "stretch": {"4": 1.5},
+     "twist": {"forearm": [0, 180]}, "translate": [0, 0, 0], "degrees": true}
+
+All keys are optional; ``{}`` is the rest pose. The pose is
+:func:`stbs.forward_kinematics`: children start at their parent's posed end and
+inherit the parent's full end rotation, twist included.
+
+``rotate``
+    ``{bone: {"axis": [x, y, z], "angle": a}}`` in 3D (axis non-zero, any
+    length), ``{bone: {"angle": a}}`` in 2D (counter-clockwise; no axis). The
+    bone's *local* rotation about its start joint, in its parent's frame (the
+    world frame for a root bone). Unlisted bones: identity.
+``stretch``
+    ``{bone: sigma}`` with sigma > 0, posed length / rest length. Unlisted: 1.
+``twist`` (3D only)
+    ``{bone: [start, end]}``, *local* twists: relative to the frame the bone
+    inherits from its parent. They map onto forward kinematics' per-joint twist
+    as follows:
+
+    - ``end`` is the twist at the bone's end joint. It grows along the bone
+      (theta_b = ``end``) and every bone below that joint is turned rigidly by
+      it (the paper's Fig. 5: ``{"forearm": [0, 180]}`` spreads 180 degrees along
+      the forearm and turns the hand by 180 degrees).
+    - ``start`` must be 0 except on a root bone, where it is the twist at the
+      root joint: the root bone turns rigidly by ``start`` and its twist grows
+      to ``end`` (theta = ``[start, end]``). A non-root bone cannot have its own
+      start twist, because its start is its parent's end, already twisted by
+      the parent's ``end`` (give the twist there instead). When several root
+      bones start at one joint, a non-zero ``start`` turns all of them, so all
+      of them must be listed with the same ``start``.
+``translate``
+    (d,) offset added to every root bone's start. Default 0.
+
+Errors are :class:`ValueError` naming the file (or ``pose`` for a dict), the
+key and the bone, what was expected and what was found: unknown keys, a
+mixture of both forms, a bone that does not exist or is listed twice, wrong
+vector lengths, non-numbers, NaN or infinity, a stretch <= 0, a zero axis, a
+non-zero twist on a 2D skeleton, and a start twist on a non-root bone.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from . import transforms as tf
+from .pose import Pose, forward_kinematics
+from .skeleton import Skeleton
+
+__all__ = ["read_pose", "JOINTS_KEYS", "FK_KEYS"]
+
+#: Keys of the joints form.
+JOINTS_KEYS = ("joints", "twist", "degrees")
+#: Keys of the forward-kinematics form.
+FK_KEYS = ("rotate", "stretch", "twist", "translate", "degrees")
+
+
+def read_pose(path_or_dict: str | os.PathLike | Mapping[str, Any], sk: Skeleton) -> Pose:
+    """Read a pose of ``sk`` from a JSON file or an already parsed dict.
+
+    Parameters
+    ----------
+    path_or_dict : str, os.PathLike or Mapping
+        A ``.json`` file (any extension is accepted), or the parsed object.
+    sk : Skeleton
+        The skeleton the pose is for; bone names and indices refer to it.
+
+    Returns
+    -------
+    Pose
+
+    Raises
+    ------
+    FileNotFoundError
+        The file does not exist.
+    ValueError
+        The file is not valid JSON, or the pose is invalid (see the module docs);
+        the message names the file, the key and the bone.
+    TypeError
+        ``sk`` is not a :class:`stbs.Skeleton`, or ``path_or_dict`` is neither a
+        path nor a mapping.
+    """
+    if not isinstance(sk, Skeleton):
+        raise TypeError(f"sk must be a stbs.Skeleton, got {type(sk).__name__}")
+    if isinstance(path_or_dict, Mapping):
+        src, obj = "pose", path_or_dict
+    elif isinstance(path_or_dict, (str, os.PathLike)):
+        src, obj = _load(Path(os.fspath(path_or_dict)))
+    else:
+        raise TypeError("path_or_dict must be a path or a dict, got "
+                        f"{type(path_or_dict).__name__}")
+    return _Reader(src, sk).pose(obj)
+
+
+def _load(p: Path) -> tuple[str, Any]:
+    if not p.exists():
+        raise FileNotFoundError(2, "pose file not found", str(p))
+    if p.is_dir():
+        raise IsADirectoryError(21, "pose path is a folder, expected a file", str(p))
+    src = str(p)
+    try:
+        text = p.read_text(encoding="utf-8")
+    except UnicodeDecodeError as exc:
+        raise ValueError(f"{src}: expected UTF-8 JSON text, found an undecodable byte at "
+                         f"offset {exc.start}") from None
+    try:
+        return src, json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise ValueError(f"{src}, line {exc.lineno}, column {exc.colno}: not valid JSON "
+                         f"({exc.msg})") from None
+
+
+def _show(x: Any) -> str:
+    """A short JSON rendering of a value for error messages."""
+    try:
+        s = json.dumps(x)
+    except (TypeError, ValueError):
+        s = repr(x)
+    return s if len(s) <= 60 else s[:57] + "..."
+
+
+class _Reader:
+    """Validates one pose object; ``src`` prefixes every message."""
+
+    def __init__(self, src: str, sk: Skeleton):
+        self.src = src
+        self.sk = sk
+        self.scale = 1.0
+
+    def fail(self, where: str, msg: str) -> ValueError:
+        return ValueError(f"{self.src}: {where}: {msg}")
+
+    # ------------------------------------------------------------------ scalars
+    def number(self, where: str, x: Any) -> float:
+        # bool is an int in Python but never a number in a pose file.
+        if isinstance(x, bool) or not isinstance(x, (int, float)):
+            raise self.fail(where, f"expected a number, found {_show(x)}")
+        v = float(x)
+        if not math.isfinite(v):
+            raise self.fail(where, f"expected a finite number, found {_show(x)}")
+        return v
+
+    def vector(self, where: str, x: Any, d: int, what: str) -> np.ndarray:
+        if not isinstance(x, list) or len(x) != d:
+            got = f"{len(x)} values" if isinstance(x, list) else _show(x)
+            raise self.fail(where, f"expected {what} (a list of {d} numbers), found {got}")
+        return np.array([self.number(f"{where}[{k}]", v) for k, v in enumerate(x)])
+
+    def table(self, key: str, x: Any) -> dict[int, tuple[str, Any]]:
+        """``{bone: value}`` -> ``{bone index: (label, value)}``; each bone at most once."""
+        if not isinstance(x, Mapping):
+            raise self.fail(f'"{key}"', f"expected an object {{bone: value}}, found {_show(x)}")
+        out: dict[int, tuple[str, Any]] = {}
+        given: dict[int, Any] = {}
+        for name, value in x.items():
+            try:
+                i = self.sk.bone_index(name)
+            except ValueError as exc:
+                raise self.fail(f'"{key}"', str(exc)) from None
+            label = f'"{key}" bone {name!r}'
+            if i in out:
+                raise self.fail(label, f"bone {i} ({self.sk.names[i]!r}) is given twice "
+                                       f"(also as {given[i]!r})")
+            out[i] = (label, value)
+            given[i] = name
+        return out
+
+    def twist_pairs(self, x: Any) -> dict[int, tuple[str, float, float]]:
+        out = {}
+        for i, (label, v) in self.table("twist", x).items():
+            s, e = self.vector(label, v, 2, "[start, end] twist angles") * self.scale
+            out[i] = (label, float(s), float(e))
+        if self.sk.dim == 2 and any(s != 0 or e != 0 for _, s, e in out.values()):
+            label = next(lb for lb, s, e in out.values() if s != 0 or e != 0)
+            raise self.fail(label, "twist must be 0 for a 2D skeleton (bones twist about "
+                                   "their own axis, which needs 3D)")
+        return out
+
+    # ------------------------------------------------------------------ forms
+    def pose(self, obj: Any) -> Pose:
+        if not isinstance(obj, Mapping):
+            raise ValueError(f"{self.src}: expected a JSON object with keys "
+                             f"{', '.join(JOINTS_KEYS)} or {', '.join(FK_KEYS)}, "
+                             f"found {_show(obj)}")
+        keys = set(obj)
+        deg = obj.get("degrees", True)
+        if not isinstance(deg, bool):
+            raise self.fail('"degrees"', f"expected true or false, found {_show(deg)}")
+        self.scale = math.pi / 180.0 if deg else 1.0
+        if "joints" in keys:
+            unknown = sorted(keys - set(JOINTS_KEYS))
+            if unknown:
+                raise self.fail(f"key {unknown[0]!r}", "not allowed with \"joints\"; the "
+                                f"joints form takes {', '.join(JOINTS_KEYS)} (the "
+                                f"forward-kinematics form takes {', '.join(FK_KEYS)})")
+            return self.joints_form(obj)
+        unknown = sorted(keys - set(FK_KEYS))
+        if unknown:
+            raise self.fail(f"key {unknown[0]!r}", "unknown key; expected "
+                            f"{', '.join(FK_KEYS)} (forward kinematics) or "
+                            f"{', '.join(JOINTS_KEYS)} (posed joints)")
+        return self.fk_form(obj)
+
+    def joints_form(self, obj: Mapping) -> Pose:
+        sk = self.sk
+        j, d = sk.n_joints, sk.dim
+        J = obj["joints"]
+        if not isinstance(J, list) or len(J) != j:
+            got = f"{len(J)} rows" if isinstance(J, list) else _show(J)
+            raise self.fail('"joints"', f"expected {j} posed joint positions (one per joint "
+                                        f"of the skeleton), found {got}")
+        C = np.array([self.vector(f'"joints"[{k}]', row, d, f"a {d}D position")
+                      for k, row in enumerate(J)])
+        theta = np.zeros((sk.n_bones, 2))
+        for i, (_, s, e) in self.twist_pairs(obj.get("twist", {})).items():
+            theta[i] = (s, e)
+        try:
+            return Pose.from_joints(sk, C, twist=theta)
+        except ValueError as exc:
+            raise self.fail('"joints"', str(exc)) from None
+
+    def fk_form(self, obj: Mapping) -> Pose:
+        sk = self.sk
+        b, d = sk.n_bones, sk.dim
+        L = np.tile(np.eye(d), (b, 1, 1))
+        for i, (label, spec) in self.table("rotate", obj.get("rotate", {})).items():
+            L[i] = self.rotation(label, spec)
+        sigma = np.ones(b)
+        for i, (label, v) in self.table("stretch", obj.get("stretch", {})).items():
+            sigma[i] = self.number(label, v)
+            if sigma[i] <= 0:
+                raise self.fail(label, f"stretch must be > 0 (posed length / rest length), "
+                                       f"found {_show(v)}")
+        tau = self.joint_twist(self.twist_pairs(obj.get("twist", {})))
+        shift = None
+        if "translate" in obj:
+            shift = self.vector('"translate"', obj["translate"], d, f"a {d}D offset")
+        return forward_kinematics(sk, rotations=L, stretch=sigma, twist=tau, translation=shift)
+
+    def rotation(self, label: str, spec: Any) -> np.ndarray:
+        d = self.sk.dim
+        want = '{"axis": [x, y, z], "angle": a}' if d == 3 else '{"angle": a}'
+        if not isinstance(spec, Mapping):
+            raise self.fail(label, f"expected {want}, found {_show(spec)}")
+        extra = sorted(set(spec) - ({"axis", "angle"} if d == 3 else {"angle"}))
+        if extra:
+            why = " (a 2D rotation has no axis)" if d == 2 and extra == ["axis"] else ""
+            raise self.fail(label, f"unexpected key {extra[0]!r}{why}; expected {want}")
+        if "angle" not in spec:
+            raise self.fail(label, f'missing "angle"; expected {want}')
+        angle = self.number(f'{label} "angle"', spec["angle"]) * self.scale
+        if d == 2:
+            return tf.rotation_2d(angle)
+        if "axis" not in spec:
+            raise self.fail(label, f'missing "axis"; expected {want}')
+        axis = self.vector(f'{label} "axis"', spec["axis"], 3, "a 3D axis")
+        if not np.any(axis):
+            raise self.fail(f'{label} "axis"', "expected a non-zero axis, found [0, 0, 0]")
+        return tf.axis_angle_to_matrix(axis, angle)
+
+    def joint_twist(self, pairs: dict[int, tuple[str, float, float]]) -> np.ndarray:
+        """Per-bone local ``[start, end]`` -> forward kinematics' per-joint twist (j,)."""
+        sk = self.sk
+        tau = np.zeros(sk.n_joints)
+        for i, (label, s, e) in pairs.items():
+            a, b = (int(x) for x in sk.BE[i])
+            if s != 0 and sk.parents[i] >= 0:
+                p = int(sk.parents[i])
+                raise self.fail(label, f"a start twist is only allowed on a root bone; bone "
+                                f"{i} ({sk.names[i]!r}) starts at the end of bone {p} "
+                                f"({sk.names[p]!r}) and inherits its end twist, so give "
+                                f"the twist as that bone's end")
+            if s != 0:
+                for k in np.flatnonzero(sk.BE[:, 0] == a).tolist():
+                    if k != i and (k not in pairs or pairs[k][1] != s):
+                        raise self.fail(label, f"a start twist at root joint {a} turns every "
+                                        f"bone starting there; list bone {k} "
+                                        f"({sk.names[k]!r}) with the same start as bone {i}")
+                tau[a] = s
+            tau[b] = e - s
+        return tau
