@@ -245,3 +245,14 @@ def test_truncated_archive(tmp_path):
     p.write_bytes(data[: len(data) // 2])
     with pytest.raises(FormatError, match="r.npz"):
         load_rig(p)
+
+
+def test_damaged_archive_member(tmp_path):
+    p = tmp_path / "r.npz"
+    save_rig(p, small_rig())
+    data = bytearray(p.read_bytes())
+    mid = len(data) // 3
+    data[mid:mid + 40] = bytes(40)
+    p.write_bytes(bytes(data))
+    with pytest.raises(FormatError, match="r.npz: expected"):
+        load_rig(p)

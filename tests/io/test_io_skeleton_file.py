@@ -61,3 +61,11 @@ def test_real_skeletons(shared_data):
 def test_real_point_handles_only_is_an_error(shared_data):
     with pytest.raises(FormatError, match="only 2 point handles"):
         read_skeleton(shared_data / "FAST/cactus_3d/bone_roots.bf")
+
+
+def test_dim_error_is_not_reported_as_a_bad_skeleton(tmp_path):
+    p = tmp_path / "z.tgf"
+    p.write_text("1 0 0 0\n2 1 0 1\n#\n1 2\n")
+    with pytest.raises(ValueError, match="dim=2 asks for planar joints") as info:
+        read_skeleton(p, dim=2)
+    assert not isinstance(info.value, FormatError)

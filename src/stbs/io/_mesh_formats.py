@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ._parse import _word, parse_block, read_lines
+from ._parse import parse_block, quote, read_lines
 from .errors import FormatError
 
 Polys = list[np.ndarray]
@@ -75,19 +75,19 @@ def read_obj(p: Path) -> tuple[np.ndarray, Polys, None]:
                 i = int(head)
             except ValueError:
                 raise FormatError(p, "a face corner 'v', 'v/vt', 'v//vn' or 'v/vt/vn' "
-                                  "with an integer v", _word(t), line=ln) from None
+                                  "with an integer v", quote(t), line=ln) from None
             if i > 0:
                 i -= 1
             elif i < 0:
                 # Relative index: -1 is the latest vertex defined before this line.
                 if -i > nv:
                     raise FormatError(p, f"a relative vertex index in -{nv}..-1 "
-                                      f"({nv} vertices precede this face)", _word(t), line=ln)
+                                      f"({nv} vertices precede this face)", quote(t), line=ln)
                 i += nv
             else:
-                raise FormatError(p, "a vertex index != 0 (OBJ is 1-based)", _word(t), line=ln)
+                raise FormatError(p, "a vertex index != 0 (OBJ is 1-based)", quote(t), line=ln)
             if i >= n:
-                raise FormatError(p, f"a vertex index in 1..{n}", _word(t), line=ln)
+                raise FormatError(p, f"a vertex index in 1..{n}", quote(t), line=ln)
             face.append(i)
         faces.append(face)
     return V, _runs(faces), None
@@ -128,7 +128,7 @@ def read_off(p: Path) -> tuple[np.ndarray, Polys, None]:
     toks = head.split()
     kw = toks[0]
     if not kw.endswith("OFF") or kw.startswith(("4", "n")):
-        raise FormatError(p, "an 'OFF' header (OFF, COFF, NOFF, STOFF)", _word(head), line=ln)
+        raise FormatError(p, "an 'OFF' header (OFF, COFF, NOFF, STOFF)", quote(head), line=ln)
     if len(toks) > 1 and toks[1].upper() == "BINARY":
         raise FormatError(p, "an ASCII OFF file", "'OFF BINARY' (not supported)", line=ln)
     k = 1
@@ -145,7 +145,7 @@ def read_off(p: Path) -> tuple[np.ndarray, Polys, None]:
             raise ValueError
     except (ValueError, IndexError):
         raise FormatError(p, "counts 'nV nF nE' (non-negative integers)",
-                          _word(" ".join(counts)), line=ln) from None
+                          quote(" ".join(counts)), line=ln) from None
     if len(recs) < k + nv + nf:
         have = len(recs) - k
         raise FormatError(p, f"{nv} vertex lines and {nf} face lines",
@@ -159,12 +159,12 @@ def read_off(p: Path) -> tuple[np.ndarray, Polys, None]:
             a = int(t[0])
             face = [int(x) for x in t[1:1 + a]]
         except ValueError:
-            raise FormatError(p, "a face 'k i_1 ... i_k' of integers", _word(s), line=ln) from None
+            raise FormatError(p, "a face 'k i_1 ... i_k' of integers", quote(s), line=ln) from None
         if a < 3 or len(face) != a:
-            raise FormatError(p, "a face 'k i_1 ... i_k' with k >= 3 indices", _word(s), line=ln)
+            raise FormatError(p, "a face 'k i_1 ... i_k' with k >= 3 indices", quote(s), line=ln)
         bad = [i for i in face if not 0 <= i < nv]
         if bad:
-            raise FormatError(p, f"vertex indices in 0..{nv - 1}", f"{bad[0]} in {_word(s)}",
+            raise FormatError(p, f"vertex indices in 0..{nv - 1}", f"{bad[0]} in {quote(s)}",
                               line=ln)
         faces.append(face)
     return V, _runs(faces), None
@@ -213,7 +213,7 @@ def read_medit(p: Path) -> tuple[np.ndarray, Polys, np.ndarray | None]:
             if num < 0:
                 raise ValueError
         except ValueError:
-            raise FormatError(p, f"a non-negative integer after '{kw}'", _word(val),
+            raise FormatError(p, f"a non-negative integer after '{kw}'", quote(val),
                               line=at + 1) from None
         if key == "meshversionformatted":
             i = nxt
@@ -286,7 +286,7 @@ def read_msh2(p: Path) -> tuple[np.ndarray, Polys, np.ndarray | None]:
         binary, dsize = int(fmt[1]) == 1, int(fmt[2])
     except (IndexError, ValueError):
         raise FormatError(p, "'version file-type data-size' on line 2",
-                          _word(data[nl1 + 1:nl2].decode("latin-1")), line=2) from None
+                          quote(data[nl1 + 1:nl2].decode("latin-1")), line=2) from None
     if binary:
         return _read_msh2_binary(p, data, nl2 + 1, dsize)
     return _read_msh2_ascii(p)
@@ -338,7 +338,7 @@ def _read_msh2_ascii(p: Path) -> tuple[np.ndarray, Polys, np.ndarray | None]:
     try:
         n = int(lines[k])
     except (ValueError, IndexError):
-        raise FormatError(p, "the node count", _word(lines[k] if k < len(lines) else ""),
+        raise FormatError(p, "the node count", quote(lines[k] if k < len(lines) else ""),
                           line=k + 1) from None
     if k + 1 + n > len(lines):
         raise FormatError(p, f"{n} node lines", "end of file", line=len(lines))
@@ -349,7 +349,7 @@ def _read_msh2_ascii(p: Path) -> tuple[np.ndarray, Polys, np.ndarray | None]:
     try:
         m = int(lines[k])
     except (ValueError, IndexError):
-        raise FormatError(p, "the element count", _word(lines[k] if k < len(lines) else ""),
+        raise FormatError(p, "the element count", quote(lines[k] if k < len(lines) else ""),
                           line=k + 1) from None
     kinds: dict[int, list[np.ndarray]] = {_GMSH_TRI: [], _GMSH_QUAD: [], _GMSH_TET: []}
     for j in range(k + 1, k + 1 + m):
@@ -360,7 +360,7 @@ def _read_msh2_ascii(p: Path) -> tuple[np.ndarray, Polys, np.ndarray | None]:
             etype, ntags = t[1], t[2]
         except (ValueError, IndexError):
             raise FormatError(p, "an element 'id type ntags tags... nodes...' of integers",
-                              _word(lines[j]), line=j + 1) from None
+                              quote(lines[j]), line=j + 1) from None
         if not _accept_type(p, etype, f"line {j + 1}"):
             continue
         nodes_e = t[3 + ntags:]

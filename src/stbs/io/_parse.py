@@ -79,7 +79,7 @@ def apply_dim(X: np.ndarray, dim: Dim, path: Path, what: str) -> np.ndarray:
     return X
 
 
-def _word(s: str) -> str:
+def quote(s: str) -> str:
     s = s.strip()
     return repr(s if len(s) <= 60 else s[:57] + "...")
 
@@ -115,14 +115,14 @@ def parse_block(path: Path, lines: Sequence[str], first_line: int | Sequence[int
         ln = first_line + k if isinstance(first_line, int) else int(first_line[k])
         if len(t) < ncols or (exact and len(t) != ncols):
             want = f"{'exactly' if exact else 'at least'} {ncols} numbers for {what}"
-            raise FormatError(path, want, f"{len(t)}: {_word(lines[k])}", line=ln)
+            raise FormatError(path, want, f"{len(t)}: {quote(lines[k])}", line=ln)
         for x in t[:ncols]:
             try:
                 v = conv(x)
             except ValueError:
                 kind = "a number" if conv is float else "an integer"
-                raise FormatError(path, f"{kind} in {what}", _word(x), line=ln) from None
+                raise FormatError(path, f"{kind} in {what}", quote(x), line=ln) from None
             if conv is float and not np.isfinite(v):
-                raise FormatError(path, f"a finite number in {what}", _word(x), line=ln)
+                raise FormatError(path, f"a finite number in {what}", quote(x), line=ln)
     ln = first_line if isinstance(first_line, int) else (first_line[0] if first_line else None)
     raise FormatError(path, f"numbers for {what}", "unparsable data", line=ln)

@@ -32,7 +32,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..skeleton import Skeleton
-from ._parse import Dim, _word, apply_dim, check_dim, input_path, read_lines
+from ._parse import Dim, apply_dim, check_dim, input_path, quote, read_lines
 from .errors import FormatError
 
 __all__ = ["BoneForest", "read_bf"]
@@ -97,7 +97,7 @@ def _int(p, tok: str, what: str, ln: int) -> int:
     except ValueError:
         v = float("nan")
     if not np.isfinite(v) or v != int(v):
-        raise FormatError(p, f"an integer {what}", _word(tok), line=ln)
+        raise FormatError(p, f"an integer {what}", quote(tok), line=ln)
     return int(v)
 
 
@@ -156,10 +156,10 @@ def read_bf(path: str | os.PathLike, *, dim: Dim = "auto") -> BoneForest:
             try:
                 vals[k, c] = float(tok)
             except ValueError:
-                raise FormatError(p, f"a number in column {c + 3}", _word(tok), line=ln) from None
+                raise FormatError(p, f"a number in column {c + 3}", quote(tok), line=ln) from None
     if not np.all(np.isfinite(vals)):
         k = int(np.argwhere(~np.isfinite(vals))[0, 0])
-        raise FormatError(p, "finite numbers", _word(" ".join(rows[k])), line=nums[k])
+        raise FormatError(p, "finite numbers", quote(" ".join(rows[k])), line=nums[k])
     wi = np.where(wi < 0, -1, wi)
     bad = np.flatnonzero((par < -1) | (par >= j) | (par == np.arange(j)))
     if bad.size:

@@ -23,7 +23,7 @@ import scipy.sparse as sp
 
 from .. import _checks
 from ._atomic import atomic_open
-from ._parse import _word, input_path, suffix
+from ._parse import input_path, quote, suffix
 from .errors import FormatError
 
 __all__ = ["read_dmat", "write_dmat"]
@@ -39,7 +39,7 @@ def _header(p, line: bytes, ln: int) -> tuple[int, int]:
             raise ValueError
     except ValueError:
         raise FormatError(p, "a header 'cols rows' of two non-negative integers",
-                          _word(line.decode("latin-1")), line=ln) from None
+                          quote(line.decode("latin-1")), line=ln) from None
     return rows, cols
 
 
@@ -98,9 +98,9 @@ def _locate_bad_value(p, text: str) -> None:
             try:
                 v = float(tok)
             except ValueError:
-                raise FormatError(p, "a number", _word(tok), line=k + 2) from None
+                raise FormatError(p, "a number", quote(tok), line=k + 2) from None
             if not np.isfinite(v):
-                raise FormatError(p, "a finite number", _word(tok), line=k + 2)
+                raise FormatError(p, "a finite number", quote(tok), line=k + 2)
 
 
 def _read_binary(p, rest: bytes) -> np.ndarray:

@@ -7,24 +7,24 @@ readable without stbs and never containing pickled objects.
 Format version 1
 ----------------
 
-==================================  ================  ========  ==============================
-key                                 shape, dtype      required  meaning
-==================================  ================  ========  ==============================
-``stbs_rig_version``                (), int64         yes       format version, ``1``
-``V``                               (n, d) float64    yes       rest vertex positions, d = 2|3
-``F``                               (f, 3) int64      no        triangles, 0-based
-``T``                               (t, 4) int64      no        tetrahedra, 0-based
-``C``                               (j, d) float64    yes       rest joint positions
-``BE``                              (b, 2) int64      yes       bones as 0-based joint pairs
-``names``                           (b,) unicode      no        bone names
-``W``                               (n, b) float64    yes [1]_  bone weights, dense
-``W_data`` ``W_indices``            CSR arrays        yes [1]_  bone weights, sparse (CSR):
-``W_indptr`` ``W_shape``                                        float64 data, int64 indices
-                                                                and indptr, shape ``[n, b]``
-``E`` / ``E_data`` ``E_indices``    as ``W``          no        endpoint weights, dense or
-``E_indptr`` ``E_shape``                                        sparse (CSR)
-``meta_json``                       (), unicode       no        JSON object: free metadata
-==================================  ================  ========  ==============================
+=========================  ================  ========  ======================================
+key                        shape, dtype      required  meaning
+=========================  ================  ========  ======================================
+``stbs_rig_version``       (), int64         yes       format version, ``1``
+``V``                      (n, d) float64    yes       rest vertex positions, d = 2 or 3
+``F``                      (f, 3) int64      no        triangles, 0-based
+``T``                      (t, 4) int64      no        tetrahedra, 0-based
+``C``                      (j, d) float64    yes       rest joint positions
+``BE``                     (b, 2) int64      yes       bones as 0-based joint pairs
+``names``                  (b,) unicode      no        bone names
+``W``                      (n, b) float64    yes [1]_  bone weights, dense
+``W_data``                 (nnz,) float64    yes [1]_  bone weights, sparse CSR: values
+``W_indices``              (nnz,) int64      yes [1]_  column (bone) index of each value
+``W_indptr``               (n + 1,) int64    yes [1]_  row pointers
+``W_shape``                (2,) int64        yes [1]_  ``[n, b]``
+``E``, ``E_data``, ...     as ``W``          no        endpoint weights, dense or sparse CSR
+``meta_json``              (), unicode       no        JSON object: free metadata
+=========================  ================  ========  ======================================
 
 .. [1] Exactly one of the two forms of ``W`` (dense ``W`` or the four ``W_*``
    keys) is present; the same holds for ``E`` when it is stored.
@@ -39,6 +39,7 @@ from __future__ import annotations
 import json
 import os
 import zipfile
+import zlib
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -296,19 +297,23 @@ def load_rig(path: str | os.PathLike) -> Rig:
     if not zipfile.is_zipfile(p):
         raise FormatError(p, "an .npz (zip) archive written by stbs.io.save_rig",
                           "an empty file" if p.stat().st_size == 0 else "another kind of file")
-    try:
-        z = np.load(p, allow_pickle=False)
-    except (ValueError, OSError, zipfile.BadZipFile) as exc:
-        raise FormatError(p, "a readable .npz archive", str(exc)) from None
-    with z:
-        keys = set(z.files)
+    # np.load is given an open handle so that a broken archive cannot leak it.
+    with open(p, "rb") as fh:
         try:
-            return _load(p, _Arrays(p, z), keys)
-        except FormatError:
-            raise
-        except ValueError as exc:
-            # Object arrays (allow_pickle=False) and Rig's shape checks end up here.
-            raise FormatError(p, "a consistent stbs rig", str(exc)) from None
+            z = np.load(fh, allow_pickle=False)
+        except (ValueError, OSError, EOFError, zipfile.BadZipFile) as exc:
+            raise FormatError(p, "a readable .npz archive", str(exc)) from None
+        if not hasattr(z, "files"):
+            raise FormatError(p, "an .npz archive", f"a {type(z).__name__}")
+        with z:
+            keys = set(z.files)
+            try:
+                return _load(p, _Arrays(p, z), keys)
+            except FormatError:
+                raise
+            except (ValueError, zipfile.BadZipFile, zlib.error, OSError, EOFError) as exc:
+                # Rig's shape checks and damaged members end up here.
+                raise FormatError(p, "a consistent stbs rig", str(exc)) from None
 
 
 class _Arrays:

@@ -47,17 +47,16 @@ def read_skeleton(path: str | os.PathLike, *, dim: Dim = "auto") -> Skeleton:
     dim = check_dim(dim)
     ext = suffix(path, SKELETON_READ_EXTENSIONS, "read_skeleton")
     p = input_path(path, "skeleton")
-    try:
-        if ext == ".tgf":
-            C, BE = read_tgf(p, dim=dim)
-            return Skeleton(C, BE)
+    if ext == ".tgf":
+        C, BE = read_tgf(p, dim=dim)
+    else:
         bf = read_bf(p, dim=dim)
         if bf.BE.shape[0] == 0 and bf.handles.size:
             raise FormatError(p, "at least one bone (a node with a parent)",
                               f"only {bf.handles.size} point handles (weighted roots); "
                               "use read_bf for point handles")
-        return bf.skeleton()
-    except FormatError:
-        raise
+        C, BE = bf.C, bf.BE[bf.bone_order]
+    try:
+        return Skeleton(C, BE)
     except ValueError as exc:
         raise FormatError(p, "bones that form a valid skeleton", str(exc)) from None

@@ -21,7 +21,7 @@ import numpy as np
 
 from .. import _checks
 from ._atomic import atomic_open
-from ._parse import Dim, _word, apply_dim, check_dim, input_path, parse_block, read_lines, suffix
+from ._parse import Dim, apply_dim, check_dim, input_path, parse_block, quote, read_lines, suffix
 from .errors import FormatError
 
 __all__ = ["read_tgf", "write_tgf"]
@@ -75,7 +75,7 @@ def read_tgf(path: str | os.PathLike, *, dim: Dim = "auto") -> tuple[np.ndarray,
                           "an empty file")
     if not vlines:
         raise FormatError(p, "joint lines 'index x y z' before the first '#'",
-                          _word(lines[i]), line=i + 1)
+                          quote(lines[i]), line=i + 1)
     if i == len(lines):
         raise FormatError(p, "a '#' line after the joint lines", "end of file", line=len(lines))
     C = parse_block(p, vlines, vnums, 4, "a joint line 'index x y z'")[:, 1:]
@@ -92,13 +92,13 @@ def read_tgf(path: str | os.PathLike, *, dim: Dim = "auto") -> tuple[np.ndarray,
             continue
         ln = k + 1
         if len(t) < 2:
-            raise FormatError(p, "an edge line 'a b [is_bone is_pseudo is_cage]'", _word(s),
+            raise FormatError(p, "an edge line 'a b [is_bone is_pseudo is_cage]'", quote(s),
                               line=ln)
         try:
             row = [int(x) for x in t[:5]]
         except ValueError:
             raise FormatError(p, "integers in an edge line 'a b [is_bone is_pseudo is_cage]'",
-                              _word(s), line=ln) from None
+                              quote(s), line=ln) from None
         for x in row[:2]:
             if not 1 <= x <= j:
                 raise FormatError(p, f"a joint index in 1..{j} (TGF is 1-based)", str(x),

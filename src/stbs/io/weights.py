@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import os
 import zipfile
+import zlib
 
 import numpy as np
 import scipy.sparse as sp
@@ -78,30 +79,39 @@ def read_weights(path: str | os.PathLike):
         return read_dmat(p)
     if ext == ".csv":
         return _read_csv(p)
-    try:
-        obj = np.load(p, allow_pickle=False)
-    except (ValueError, OSError, EOFError, zipfile.BadZipFile) as exc:
-        raise FormatError(p, f"a NumPy {ext} file without pickled objects",
-                          f"an unreadable file ({exc})") from None
-    if ext == ".npy":
-        if not isinstance(obj, np.ndarray):
-            raise FormatError(p, "a .npy array", type(obj).__name__)
-        return _as_matrix(p, obj, "the .npy array")
-    if not isinstance(obj, np.lib.npyio.NpzFile):
-        raise FormatError(p, "an .npz archive", f"a {type(obj).__name__}")
-    with obj:
-        keys = list(obj.files)
+    # np.load is given an open handle so that a broken archive cannot leak it.
+    with open(p, "rb") as fh:
         try:
-            if _SPARSE_KEYS <= set(keys):
-                return _as_matrix(p, sp.load_npz(p), "the sparse matrix")
-            if "W" in keys:
-                return _as_matrix(p, obj["W"], "key 'W'")
-            if len(keys) == 1:
-                return _as_matrix(p, obj[keys[0]], f"key {keys[0]!r}")
-        except ValueError as exc:
-            if isinstance(exc, FormatError):
-                raise
-            raise FormatError(p, "numeric arrays without pickled objects", str(exc)) from None
+            obj = np.load(fh, allow_pickle=False)
+        except (ValueError, OSError, EOFError, zipfile.BadZipFile) as exc:
+            raise FormatError(p, f"a NumPy {ext} file without pickled objects",
+                              f"an unreadable file ({exc})") from None
+        if ext == ".npy":
+            if not isinstance(obj, np.ndarray):
+                raise FormatError(p, "a .npy array", type(obj).__name__)
+            return _as_matrix(p, obj, "the .npy array")
+        if not hasattr(obj, "files"):
+            raise FormatError(p, "an .npz archive", f"a {type(obj).__name__}")
+        with obj:
+            try:
+                return _from_npz(p, obj)
+            except (zipfile.BadZipFile, zlib.error, OSError, EOFError) as exc:
+                raise FormatError(p, "an undamaged .npz archive", str(exc)) from None
+
+
+def _from_npz(p, obj):
+    keys = list(obj.files)
+    try:
+        if _SPARSE_KEYS <= set(keys):
+            return _as_matrix(p, sp.load_npz(p), "the sparse matrix")
+        if "W" in keys:
+            return _as_matrix(p, obj["W"], "key 'W'")
+        if len(keys) == 1:
+            return _as_matrix(p, obj[keys[0]], f"key {keys[0]!r}")
+    except ValueError as exc:
+        if isinstance(exc, FormatError):
+            raise
+        raise FormatError(p, "numeric arrays without pickled objects", str(exc)) from None
     raise FormatError(p, "an .npz with a single array or the key 'W'",
                       f"keys {keys}" if keys else "no arrays")
 

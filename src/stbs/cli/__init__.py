@@ -1,0 +1,10 @@
+"""The ``stbs`` command line (DESIGN §6): ``stbs deform``, ``stbs demo``, ``stbs bench``,
+``stbs version``.
+
+``main(argv)`` returns the exit status instead of exiting, so it can be tested in
+process; the console script ``stbs`` is ``sys.exit(main())``.
+"""
+
+from ._main import CommandError, build_parser, main
+
+__all__ = ["main", "build_parser", "CommandError"]

@@ -1,0 +1,163 @@
+"""``stbs``: argument parsing, dispatch and the error contract of DESIGN §6.
+
+Every subcommand lives in its own module with ``NAME``, ``HELP``, ``DESCRIPTION``,
+``EPILOG`` (an example), ``add_arguments(parser)`` and ``run(args) -> int``. The
+modules import nothing heavy at the top, so building the parser (``stbs --help``)
+costs no more than importing :mod:`stbs` itself.
+
+Error contract: a problem with the inputs (``ValueError``, including
+:class:`stbs.io.FormatError` and JSON errors, ``TypeError``, ``OSError`` such as a
+missing file or an unwritable output) prints exactly one line
+``stbs <cmd>: error: <message>`` on stderr and exits with status 2, without a
+traceback; ``--debug`` re-raises instead. Usage errors (unknown option or choice)
+also print one line and exit 2. Warnings raised while a command succeeds are
+printed as ``stbs: warning: <message>``, one line each.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import warnings
+from collections.abc import Sequence
+from typing import NoReturn
+
+from . import bench as _bench
+from . import deform as _deform
+from . import demo as _demo
+from ._errors import CommandError
+
+__all__ = ["main", "build_parser", "CommandError"]
+
+PROG = "stbs"
+#: Input problems reported as one line and exit status 2.
+INPUT_ERRORS = (ValueError, TypeError, OSError)
+
+
+class _Parser(argparse.ArgumentParser):
+    """An ArgumentParser whose usage errors are one line: ``prog: error: msg``."""
+
+    def error(self, message: str) -> NoReturn:
+        line = " ".join(message.split())
+        self.exit(2, f"{self.prog}: error: {line} (see '{self.prog} --help')\n")
+
+
+def _one_line(text: str) -> str:
+    return " ".join(str(text).split())
+
+
+def describe(exc: BaseException) -> str:
+    """One line for an input error: what is wrong with which input."""
+    if isinstance(exc, OSError) and exc.filename is not None and exc.strerror:
+        return _one_line(f"{exc.filename}: {exc.strerror}")
+    msg = str(exc) or type(exc).__name__
+    return _one_line(msg)
+
+
+def _version() -> str:
+    from .. import __version__
+
+    return f"{PROG} {__version__}"
+
+
+def _add_debug(p: argparse.ArgumentParser, *, top: bool) -> None:
+    # On the subcommands the default is SUPPRESS so that "stbs --debug deform ..."
+    # is not overwritten by the subparser's own default.
+    p.add_argument("--debug", action="store_true",
+                   default=False if top else argparse.SUPPRESS,
+                   help="show the full traceback instead of a one-line error")
+
+
+COMMANDS = (_deform, _demo, _bench)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The ``stbs`` parser with its subcommands (nothing heavy is imported)."""
+    fmt = argparse.RawDescriptionHelpFormatter
+    examples = "\n".join(f"  {c.EXAMPLE}" for c in COMMANDS) + f"\n  {PROG} version"
+    parser = _Parser(
+        prog=PROG, formatter_class=fmt,
+        description="Skeletal skinning with stretchable, twistable bones "
+                    "(Jacobson & Sorkine 2011): lbs, dqs, stbs-lbs, stbs-dqs.",
+        epilog=f"examples:\n{examples}\n\nRun '{PROG} COMMAND --help' for each command's "
+               "options. Errors: one line on stderr, exit status 2.")
+    parser.add_argument("--version", action="version", version=_version())
+    _add_debug(parser, top=True)
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
+    for c in COMMANDS:
+        # bench's options belong to stbs.bench, parsed on demand (see _run_bench).
+        p = sub.add_parser(c.NAME, help=c.HELP, description=c.DESCRIPTION, epilog=c.EPILOG,
+                           formatter_class=fmt, add_help=c is not _bench)
+        if c is not _bench:
+            c.add_arguments(p)
+            _add_debug(p, top=False)
+        p.set_defaults(_cmd=c)
+    p = sub.add_parser("version", help="print the version", description="Print the version.",
+                       epilog=f"example:\n  {PROG} version", formatter_class=fmt)
+    _add_debug(p, top=False)
+    p.set_defaults(_cmd=None)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run ``stbs`` with ``argv`` (default ``sys.argv[1:]``); return the exit status.
+
+    0 on success, 2 for an input or usage error (one line on stderr), 130 when
+    interrupted. Unexpected exceptions (bugs) propagate with their traceback.
+    """
+    argv = list(sys.argv[1:] if argv is None else argv)
+    parser = build_parser()
+    try:
+        args, extra = parser.parse_known_args(argv)
+    except SystemExit as exc:  # --help, --version, usage errors
+        return _code(exc)
+    if args.command is None:
+        print(f"{PROG}: error: a command is required: deform, demo, bench or version "
+              f"(see '{PROG} --help')", file=sys.stderr)
+        return 2
+    prog = f"{PROG} {args.command}"
+    if extra and args._cmd is not _bench:
+        print(f"{prog}: error: unrecognized arguments: {' '.join(extra)} "
+              f"(see '{prog} --help')", file=sys.stderr)
+        return 2
+    if args._cmd is None:
+        print(_version())
+        return 0
+    debug = bool(getattr(args, "debug", False)) or (args._cmd is _bench and "--debug" in extra)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        try:
+            if args._cmd is _bench:
+                code = _bench.run_delegated(extra, debug=debug, parser_class=_Parser)
+            else:
+                code = args._cmd.run(args)
+        except SystemExit as exc:  # a delegated parser's --help or usage error
+            return _code(exc)
+        except KeyboardInterrupt:
+            if debug:
+                raise
+            print(f"{prog}: interrupted", file=sys.stderr)
+            return 130
+        except INPUT_ERRORS as exc:
+            if debug:
+                _flush(caught)
+                raise
+            print(f"{prog}: error: {describe(exc)}", file=sys.stderr)
+            return 2
+    _flush(caught)
+    return int(code or 0)
+
+
+def _flush(caught) -> None:
+    for w in caught:
+        print(f"{PROG}: warning: {_one_line(w.message)}", file=sys.stderr)
+
+
+def _code(exc: SystemExit) -> int:
+    c = exc.code
+    if c is None:
+        return 0
+    if isinstance(c, int):
+        return c
+    print(c, file=sys.stderr)
+    return 1

@@ -1,0 +1,232 @@
+"""``stbs deform``: deform a rigged mesh by a pose file and write the result."""
+
+from __future__ import annotations
+
+import argparse
+import os
+import warnings
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from ._errors import CommandError
+
+NAME = "deform"
+HELP = "deform a rigged mesh by a pose (JSON) and write the result"
+EXAMPLE = "stbs deform arm.npz --pose twist.json --method stbs-dqs -o arm-twisted.obj"
+METHODS = ("lbs", "dqs", "stbs-lbs", "stbs-dqs")  # = stbs.METHODS (kept light to import)
+OUTPUT_EXTENSIONS = (".obj", ".off", ".ply", ".npz", ".npy")
+
+DESCRIPTION = """\
+Deform a rigged mesh by a pose and write the deformed mesh.
+
+The rig is either a .npz rig file (stbs.io.save_rig: mesh, skeleton, bone weights W
+and optionally endpoint weights E) or the three files --mesh, --skeleton and
+--weights. --endpoint gives endpoint weights E (and replaces a rig's E). The STBS
+methods need E; without it they use projection endpoint weights (paper eq. 8)
+and say so on stderr.
+
+The pose is a JSON file naming bones by index or by name (see stbs.posefile):
+  {"joints": [[x, y, z], ...], "twist": {"3": [0, 180]}}
+  {"rotate": {"2": {"axis": [0, 1, 0], "angle": 90}}, "stretch": {"4": 1.5},
+   "twist": {"forearm": [0, 180]}, "translate": [0, 0, 0]}
+Angles are in degrees unless the file says "degrees": false.
+
+The output format follows the extension of -o:
+  .obj .off .ply  the deformed triangle mesh (for a tetrahedral rig without
+                  triangles: the boundary of the tetrahedra)
+  .npz            U (n, d) float64 deformed positions, F (f, 3) and/or T (t, 4)
+                  when the rig has them, and method (a string)
+  .npy            U only
+It is written to a temporary file and renamed, so a failed run leaves nothing
+behind; the inputs are only read (an output path equal to an input is refused)."""
+
+EPILOG = f"""\
+examples:
+  {EXAMPLE}
+  stbs deform --mesh arm.obj --skeleton arm.tgf --weights arm-W.dmat \\
+      --endpoint arm-E.dmat --pose twist.json --method stbs-lbs -o arm-twisted.ply"""
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("rig", nargs="?", metavar="RIG.npz",
+                   help="rig file (instead of --mesh, --skeleton and --weights)")
+    p.add_argument("--pose", required=True, metavar="POSE.json", help="pose file (JSON)")
+    p.add_argument("--method", choices=METHODS, default="stbs-dqs",
+                   help="skinning method (default: %(default)s)")
+    p.add_argument("-o", "--output", required=True, metavar="OUT",
+                   help=f"output file: {' '.join(OUTPUT_EXTENSIONS)}")
+    g = p.add_argument_group("rig from separate files (instead of RIG.npz)")
+    g.add_argument("--mesh", metavar="MESH", help="rest mesh: .obj .off .ply .stl .mesh .msh .vtk")
+    g.add_argument("--skeleton", metavar="SKEL", help="skeleton: .tgf .bf")
+    g.add_argument("--weights", metavar="W", help="bone weights (n, b): .dmat .npy .npz .csv")
+    p.add_argument("--endpoint", metavar="E",
+                   help="endpoint weights (n, b) in [0, 1]: .dmat .npy .npz .csv")
+
+
+@dataclass
+class _Rig:
+    V: Any
+    F: Any
+    T: Any
+    sk: Any
+    W: Any
+    E: Any
+    W_src: str
+    E_src: str | None
+    inputs: list[Path]
+
+
+def _output_path(out: str) -> tuple[Path, str]:
+    p = Path(out)
+    ext = p.suffix.lower()
+    if ext not in OUTPUT_EXTENSIONS:
+        got = repr(ext) if ext else "no extension"
+        raise CommandError(f"output {out!r}: cannot write {got}; expected one of "
+                          f"{', '.join(OUTPUT_EXTENSIONS)}")
+    if p.is_dir():
+        raise CommandError(f"output {out!r} is a folder; expected a file path")
+    folder = p.parent if str(p.parent) else Path(".")
+    if not folder.is_dir():
+        raise CommandError(f"output {out!r}: folder {str(folder)!r} does not exist")
+    return p, ext
+
+
+def _load(args) -> _Rig:
+    from ..io import load_rig, read_mesh, read_skeleton, read_weights
+
+    files = {"--mesh": args.mesh, "--skeleton": args.skeleton, "--weights": args.weights}
+    if args.rig is not None:
+        given = [k for k, v in files.items() if v is not None]
+        if given:
+            raise CommandError(f"give either a rig file or --mesh, --skeleton and --weights, "
+                              f"not both (got {args.rig!r} and {', '.join(given)})")
+        rig = load_rig(args.rig)
+        r = _Rig(rig.V, rig.F, rig.T, rig.skeleton, rig.W, rig.E, f"{args.rig} (W)",
+                 None if rig.E is None else f"{args.rig} (E)", [Path(args.rig)])
+    else:
+        missing = [k for k, v in files.items() if v is None]
+        if missing:
+            raise CommandError("give a rig file, or all of --mesh, --skeleton and --weights "
+                              f"(missing {', '.join(missing)})")
+        mesh = read_mesh(args.mesh)
+        sk = read_skeleton(args.skeleton, dim=mesh.dim)
+        W = read_weights(args.weights)
+        r = _Rig(mesh.V, mesh.F, mesh.T, sk, W, None, args.weights, None,
+                 [Path(args.mesh), Path(args.skeleton), Path(args.weights)])
+    if args.endpoint is not None:
+        r.E = read_weights(args.endpoint)
+        r.E_src = args.endpoint
+        r.inputs.append(Path(args.endpoint))
+    return r
+
+
+def _check_shape(src: str, X, n: int, b: int, what: str) -> None:
+    shape = tuple(X.shape)
+    if shape != (n, b):
+        raise CommandError(f"{src}: {what} must have shape ({n}, {b}) (one row per mesh vertex, "
+                          f"one column per bone), found {shape}")
+
+
+def _validate(r: _Rig, method: str) -> None:
+    """Check W and E against the mesh and skeleton; name the file in every message."""
+    from .. import _checks
+    from ..weights.endpoint import projection
+
+    n, b = r.V.shape[0], r.sk.n_bones
+    _check_shape(r.W_src, r.W, n, b, "bone weights")
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        try:
+            r.W = _checks.bone_weights(r.W, n, b)
+        except ValueError as exc:
+            raise CommandError(f"{r.W_src}: {exc}") from None
+    for w in caught:
+        warnings.warn(f"{r.W_src}: {w.message}", UserWarning, stacklevel=2)
+    if r.E is not None:
+        _check_shape(r.E_src, r.E, n, b, "endpoint weights")
+        try:
+            r.E = _checks.endpoint_weights(r.E, n, b)
+        except ValueError as exc:
+            raise CommandError(f"{r.E_src}: {exc}") from None
+        if not method.startswith("stbs") and r.E_src and not r.E_src.endswith("(E)"):
+            warnings.warn(f"{r.E_src}: endpoint weights are not used by {method}",
+                          UserWarning, stacklevel=2)
+    elif method.startswith("stbs"):
+        warnings.warn(f"no endpoint weights given; {method} uses projection endpoint "
+                      "weights (paper eq. 8)", UserWarning, stacklevel=2)
+        r.E = projection(r.V, r.sk)
+
+
+def boundary_faces(V, T):
+    """Outward triangles (f, 3) on the boundary of tetrahedra T (t, 4) over vertices V."""
+    import numpy as np
+
+    T = np.asarray(T, dtype=np.int64)
+    a, b, c, d = (V[T[:, k]] for k in range(4))
+    if V.shape[1] == 3:
+        neg = np.einsum("ij,ij->i", d - a, np.cross(b - a, c - a)) < 0
+        T = np.where(neg[:, None], T[:, [0, 2, 1, 3]], T)
+    # For a positively oriented tet (a, b, c, d) these faces point outward.
+    faces = T[:, [[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]]].reshape(-1, 3)
+    key = np.sort(faces, axis=1)
+    _, inv, cnt = np.unique(key, axis=0, return_inverse=True, return_counts=True)
+    return faces[cnt[inv.ravel()] == 1]
+
+
+def _same_file(p: Path, inputs: list[Path]) -> Path | None:
+    if not p.exists():
+        return None
+    for q in inputs:
+        try:
+            if os.path.samefile(p, q):
+                return q
+        except OSError:
+            continue
+    return None
+
+
+def _write(out: Path, ext: str, U, r: _Rig, method: str) -> None:
+    import numpy as np
+
+    from ..io import atomic_open, write_mesh
+
+    if ext == ".npz":
+        arrays = {"U": np.asarray(U, dtype=np.float64), "method": np.asarray(method)}
+        if r.F is not None:
+            arrays["F"] = np.asarray(r.F, dtype=np.int64)
+        if r.T is not None:
+            arrays["T"] = np.asarray(r.T, dtype=np.int64)
+        with atomic_open(out, "wb") as f:
+            np.savez(f, **arrays)
+    elif ext == ".npy":
+        with atomic_open(out, "wb") as f:
+            np.save(f, np.asarray(U, dtype=np.float64))
+    else:
+        F = r.F
+        if F is None and r.T is not None:
+            F = boundary_faces(r.V, r.T)
+        elif F is None:
+            warnings.warn(f"the mesh has no triangles; {out} holds the vertices only",
+                          UserWarning, stacklevel=2)
+        write_mesh(out, U, F)
+
+
+def run(args: argparse.Namespace) -> int:
+    from ..posefile import read_pose
+    from ..skinning import deform
+
+    out, ext = _output_path(args.output)
+    r = _load(args)
+    src = _same_file(out, r.inputs)
+    if src is not None:
+        raise CommandError(f"output {args.output!r} is the input {str(src)!r}; the inputs "
+                          "are never overwritten, choose another output path")
+    pose = read_pose(args.pose, r.sk)
+    if _same_file(out, [Path(args.pose)]) is not None:
+        raise CommandError(f"output {args.output!r} is the pose file; choose another path")
+    _validate(r, args.method)
+    U = deform(r.V, r.sk, pose, r.W, r.E, method=args.method)
+    _write(out, ext, U, r, args.method)
+    print(f"wrote {out}: {U.shape[0]} vertices deformed by {args.method}")
+    return 0
