@@ -26,6 +26,14 @@ def choice(name: str, value: Any, valid: Sequence[str]) -> str:
     return value
 
 
+def _check_shape(name: str, a: np.ndarray, shape: tuple) -> None:
+    """``shape`` may hold ``None`` for a free axis."""
+    if a.ndim != len(shape) or any(
+            s is not None and s != t for s, t in zip(shape, a.shape, strict=True)):
+        want = "(" + ", ".join("?" if s is None else str(s) for s in shape) + ")"
+        raise ValueError(f"{name} must have shape {want}, got {a.shape}")
+
+
 def real_array(name: str, x: Any, *, ndim: int | None = None, shape: tuple | None = None,
                dtype=np.float64) -> np.ndarray:
     """Convert ``x`` to a finite float array, checking ``ndim`` and ``shape``.
@@ -39,9 +47,7 @@ def real_array(name: str, x: Any, *, ndim: int | None = None, shape: tuple | Non
     if ndim is not None and a.ndim != ndim:
         raise ValueError(f"{name} must be a {ndim}-D array, got shape {a.shape}")
     if shape is not None:
-        if a.ndim != len(shape) or any(s is not None and s != t for s, t in zip(shape, a.shape)):
-            want = "(" + ", ".join("?" if s is None else str(s) for s in shape) + ")"
-            raise ValueError(f"{name} must have shape {want}, got {a.shape}")
+        _check_shape(name, a, shape)
     if not np.all(np.isfinite(a)):
         bad = np.argwhere(~np.isfinite(a))[0]
         raise ValueError(f"{name} must be finite, got {a[tuple(bad)]} at index {tuple(bad)}")
@@ -61,9 +67,8 @@ def index_array(name: str, x: Any, *, ndim: int, shape: tuple | None = None) -> 
     a = a.astype(np.int64)
     if a.ndim != ndim:
         raise ValueError(f"{name} must be a {ndim}-D array, got shape {a.shape}")
-    if shape is not None and any(s is not None and s != t for s, t in zip(shape, a.shape)):
-        want = "(" + ", ".join("?" if s is None else str(s) for s in shape) + ")"
-        raise ValueError(f"{name} must have shape {want}, got {a.shape}")
+    if shape is not None:
+        _check_shape(name, a, shape)
     return a
 
 

@@ -2,9 +2,9 @@
 
 import numpy as np
 import pytest
-from rigs import random_pose, random_rig, random_rotations
 
 import stbs
+from rigs import random_pose, random_rig, random_rotations
 from stbs import transforms as tf
 
 

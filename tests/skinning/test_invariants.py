@@ -3,9 +3,9 @@
 import numpy as np
 import pytest
 import scipy.sparse as sp
-from rigs import random_pose, random_rig, random_rotations
 
 import stbs
+from rigs import random_pose, random_rig, random_rotations
 from stbs.skinning.reference import reference_deform
 
 METHODS = stbs.METHODS
