@@ -125,7 +125,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 0
     debug = bool(getattr(args, "debug", False)) or (args._cmd is _bench and "--debug" in extra)
     with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
+        # Ours are UserWarnings: show every one (not once per code location, which
+        # would hide repeats in a long-lived process); other categories keep the
+        # filters in force (DeprecationWarnings from libraries stay hidden).
+        warnings.simplefilter("always", UserWarning)
         try:
             if args._cmd is _bench:
                 code = _bench.run_delegated(extra, debug=debug, parser_class=_Parser)
@@ -150,7 +153,8 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 def _flush(caught) -> None:
     for w in caught:
-        print(f"{PROG}: warning: {_one_line(w.message)}", file=sys.stderr)
+        kind = "" if issubclass(w.category, UserWarning) else f"{w.category.__name__}: "
+        print(f"{PROG}: warning: {kind}{_one_line(w.message)}", file=sys.stderr)
 
 
 def _code(exc: SystemExit) -> int:

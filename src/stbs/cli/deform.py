@@ -75,20 +75,23 @@ class _Rig:
     W_src: str
     E_src: str | None
     inputs: list[Path]
+    E_flag: bool = False  # E came from --endpoint
 
 
 def _output_path(out: str) -> tuple[Path, str]:
     p = Path(out)
-    ext = p.suffix.lower()
-    if ext not in OUTPUT_EXTENSIONS:
-        got = repr(ext) if ext else "no extension"
-        raise CommandError(f"output {out!r}: cannot write {got}; expected one of "
-                          f"{', '.join(OUTPUT_EXTENSIONS)}")
     if p.is_dir():
         raise CommandError(f"output {out!r} is a folder; expected a file path")
+    ext = p.suffix.lower()
+    if ext not in OUTPUT_EXTENSIONS:
+        got = f"extension {ext!r}" if ext else "a file without an extension"
+        raise CommandError(f"output {out!r}: cannot write {got}; expected one of "
+                           f"{', '.join(OUTPUT_EXTENSIONS)}")
     folder = p.parent if str(p.parent) else Path(".")
     if not folder.is_dir():
         raise CommandError(f"output {out!r}: folder {str(folder)!r} does not exist")
+    if not os.access(folder, os.W_OK):
+        raise CommandError(f"output {out!r}: folder {str(folder)!r} is not writable")
     return p, ext
 
 
@@ -117,6 +120,7 @@ def _load(args) -> _Rig:
     if args.endpoint is not None:
         r.E = read_weights(args.endpoint)
         r.E_src = args.endpoint
+        r.E_flag = True
         r.inputs.append(Path(args.endpoint))
     return r
 
@@ -149,7 +153,7 @@ def _validate(r: _Rig, method: str) -> None:
             r.E = _checks.endpoint_weights(r.E, n, b)
         except ValueError as exc:
             raise CommandError(f"{r.E_src}: {exc}") from None
-        if not method.startswith("stbs") and r.E_src and not r.E_src.endswith("(E)"):
+        if not method.startswith("stbs") and r.E_flag:
             warnings.warn(f"{r.E_src}: endpoint weights are not used by {method}",
                           UserWarning, stacklevel=2)
     elif method.startswith("stbs"):

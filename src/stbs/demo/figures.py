@@ -240,7 +240,8 @@ def fig3_bar_bend_twist(quick: bool = False, *, bend: float = 60.0, twist: float
         }
     fig.columns = [("radius", "min radius / rest", "{:.3f}"),
                    ("twist_mid", "twist mid-upper (deg)", "{:.1f}")]
-    fig.expected = {"radius": "lbs: collapses (candy wrapper); others: about 1",
+    fig.expected = {"radius": "lbs: collapses (candy wrapper); dqs, stbs-dqs: 1; stbs-lbs: a "
+                              f"little below 1 (only the {bend:g} deg bend is blended linearly)",
                     "twist_mid": f"stbs-*: {twist / 2:g} (spread); lbs, dqs: 0 (packed at "
                                  "the joint)"}
     fig.notes = [f"one pose for all methods: joint twist {twist:g} deg at the middle joint, "

@@ -57,7 +57,7 @@ def format_summary(figures) -> str:
 
 
 def run_demo(out_dir: str | os.PathLike = "demo-out", quick: bool = False, *,
-             stream: TextIO | None = sys.stdout) -> DemoResult:
+             stream: TextIO | None = None, quiet: bool = False) -> DemoResult:
     """Run the demo: stretch a cigar (Fig. 2), twist a box and a two-bone bar (Fig. 3).
 
     For each case every method of DESIGN §3 is run (lbs, dqs, stbs-lbs, stbs-dqs)
@@ -88,8 +88,10 @@ def run_demo(out_dir: str | os.PathLike = "demo-out", quick: bool = False, *,
         is written elsewhere; every file is written atomically.
     quick : bool
         Coarser meshes (for tests); the numbers are the same to printed precision.
-    stream : text file or None
-        Where the table is printed; None prints nothing.
+    stream : text file, optional
+        Where the table is printed (default: ``sys.stdout`` at call time).
+    quiet : bool
+        Print nothing.
 
     Returns
     -------
@@ -121,7 +123,8 @@ def run_demo(out_dir: str | os.PathLike = "demo-out", quick: bool = False, *,
                    "notes": {k: fig.notes for k, fig in res.figures.items()}}, f, indent=2)
         f.write("\n")
     res.files += [out / "summary.txt", out / "summary.json"]
-    if stream is not None:
+    if not quiet:
+        stream = sys.stdout if stream is None else stream
         stream.write(res.summary)
         stream.write(f"wrote {len(res.files)} files to {out}\n")
     return res
