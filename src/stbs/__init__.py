@@ -2,15 +2,53 @@
 
 Jacobson & Sorkine, "Stretchable and Twistable Bones for Skeletal Shape
 Deformation", SIGGRAPH Asia 2011. DESIGN.md is the contract; names here are stable.
+
+Names are loaded on first use (PEP 562), so ``import stbs`` and ``stbs --help`` stay
+fast and numba is imported only when skinning is first needed.
 """
 
-from .io import Rig, load_rig, save_rig
-from .pose import Pose, forward_kinematics
-from .skeleton import Skeleton
-from .skinning import METHODS, Deformer, deform
-from .weights import endpoint_weights
+from __future__ import annotations
+
+import importlib
+from typing import TYPE_CHECKING
 
 __version__ = "0.1.0"
 
+_EXPORTS = {
+    "Skeleton": "stbs.skeleton",
+    "Pose": "stbs.pose",
+    "forward_kinematics": "stbs.pose",
+    "Deformer": "stbs.skinning",
+    "deform": "stbs.skinning",
+    "METHODS": "stbs.skinning",
+    "endpoint_weights": "stbs.weights",
+    "Rig": "stbs.io",
+    "load_rig": "stbs.io",
+    "save_rig": "stbs.io",
+    "read_pose": "stbs.posefile",
+}
+
 __all__ = ["Skeleton", "Pose", "forward_kinematics", "Deformer", "deform", "METHODS",
-           "endpoint_weights", "Rig", "load_rig", "save_rig", "__version__"]
+           "endpoint_weights", "Rig", "load_rig", "save_rig", "read_pose", "__version__"]
+
+
+def __getattr__(name: str):
+    module = _EXPORTS.get(name)
+    if module is None:
+        raise AttributeError(f"module 'stbs' has no attribute {name!r}")
+    value = getattr(importlib.import_module(module), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(__all__)
+
+
+if TYPE_CHECKING:  # pragma: no cover - for type checkers and IDEs
+    from .io import Rig, load_rig, save_rig
+    from .pose import Pose, forward_kinematics
+    from .posefile import read_pose
+    from .skeleton import Skeleton
+    from .skinning import METHODS, Deformer, deform
+    from .weights import endpoint_weights
