@@ -5,7 +5,7 @@ import pytest
 import scipy.sparse as sp
 
 import stbs
-from rigs import random_pose, random_rig, random_rotations
+from rigs import random_pose, random_rig, random_rotations, random_skeleton, random_weights
 from stbs.skinning.reference import reference_deform
 
 METHODS = stbs.METHODS
@@ -95,7 +95,8 @@ def test_max_influences_truncates_and_renormalises():
     rng, sk, V, W, E = random_rig(7, 3)
     pose = random_pose(rng, sk)
     dfm = stbs.Deformer(V, sk, W, E, method="lbs", max_influences=1)
-    assert dfm.layout.k == 1
+    assert dfm.layout.k == 4  # one influence, padded to the 4-slot kernel
+    assert np.count_nonzero(dfm.layout.w, axis=1).tolist() == [len(V), 0, 0, 0]
     hard = np.zeros_like(W)
     hard[np.arange(len(W)), W.argmax(axis=1)] = 1.0
     assert np.allclose(dfm(pose), reference_deform(V, pose, hard, None, "lbs"))
@@ -114,6 +115,21 @@ def test_output_buffer_is_reused():
 def test_deformer_holds_few_copies():
     _, sk, V, W, E = random_rig(9, 3, n=5000)
     dfm = stbs.Deformer(V, sk, W, E, method="stbs-dqs")
-    # V (24 B) + k=3 influences x (1 B index + 8 B weight + 8 B endpoint) per vertex
-    assert dfm.nbytes == V.nbytes + len(V) * 3 * (1 + 8 + 8)
+    # V (24 B) + k=3 influences padded to 4 x (1 B index + 8 B weight + 8 B endpoint)
+    assert dfm.nbytes == V.nbytes + len(V) * 4 * (1 + 8 + 8)
     assert dfm.nbytes < V.nbytes + W.nbytes + E.nbytes  # less than one copy of the input
+
+
+@pytest.mark.parametrize("k", [1, 2, 5, 12])
+@pytest.mark.parametrize("method", METHODS)
+def test_every_slot_count_path(method, k):
+    # k <= 4 and k <= 8 run unrolled kernels on padded layouts, larger k the generic loop
+    rng = np.random.default_rng(30 + k)
+    sk = random_skeleton(rng, 3, 14)
+    V = rng.normal(size=(300, 3)) + sk.C.mean(axis=0)
+    W, E = random_weights(rng, 300, 14, k=k)
+    pose = random_pose(rng, sk)
+    dfm = stbs.Deformer(V, sk, W, E, method=method)
+    assert dfm.layout.k == (4 if k <= 4 else 8 if k <= 8 else k)
+    ref = reference_deform(V, pose, W, E, method)
+    assert np.abs(dfm(pose) - ref).max() <= 1e-11 * np.abs(ref).max()

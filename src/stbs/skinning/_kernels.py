@@ -87,44 +87,61 @@ def _cofactor_apply(m0, m1, m2, m3, m4, m5, m6, m7, m8, nx, ny, nz):
 
 
 # --------------------------------------------------------------------------- lbs
-@nb.njit(parallel=True, **_JIT)
-def lbs(V, idx, w, M, out, N, Nout, want_normals):
+@nb.njit(inline="always", **_JIT)
+def _lbs_vertex(V, idx, w, M, out, N, Nout, want_normals, v, K):
     """p' = sum_i w_i (A_i p + t_i) with M[i] = (A_i row-major (9), t_i (3)).
 
-    Memory-bound: blend the 3x4 matrices, apply once; zero weights end the list.
+    One vertex v; ``K`` slots (padded slots have weight 0 and add nothing).
+    """
+    px = np.float64(V[v, 0])
+    py = np.float64(V[v, 1])
+    pz = np.float64(V[v, 2])
+    m0 = m1 = m2 = m3 = m4 = m5 = m6 = m7 = m8 = m9 = m10 = m11 = 0.0
+    for j in range(K):
+        wj = np.float64(w[j, v])
+        b = idx[j, v]
+        m0 += wj * M[b, 0]
+        m1 += wj * M[b, 1]
+        m2 += wj * M[b, 2]
+        m3 += wj * M[b, 3]
+        m4 += wj * M[b, 4]
+        m5 += wj * M[b, 5]
+        m6 += wj * M[b, 6]
+        m7 += wj * M[b, 7]
+        m8 += wj * M[b, 8]
+        m9 += wj * M[b, 9]
+        m10 += wj * M[b, 10]
+        m11 += wj * M[b, 11]
+    out[v, 0] = m0 * px + m1 * py + m2 * pz + m9
+    out[v, 1] = m3 * px + m4 * py + m5 * pz + m10
+    out[v, 2] = m6 * px + m7 * py + m8 * pz + m11
+    if want_normals:
+        a, b2, c2 = _cofactor_apply(m0, m1, m2, m3, m4, m5, m6, m7, m8, np.float64(N[v, 0]),
+                                    np.float64(N[v, 1]), np.float64(N[v, 2]))
+        Nout[v, 0] = a
+        Nout[v, 1] = b2
+        Nout[v, 2] = c2
+
+
+@nb.njit(parallel=True, **_JIT)
+def lbs(V, idx, w, M, out, N, Nout, want_normals):
+    """Multi-threaded pass over the vertices; see ``_lbs_vertex``.
+
+    Layouts with 4 or 8 slots get a loop with a constant trip count, which the
+    compiler unrolls into straight-line code (measured 20-30% faster than a loop
+    over a run-time slot count).
     """
     k, n = idx.shape
-    for v in nb.prange(n):
-        px = np.float64(V[v, 0])
-        py = np.float64(V[v, 1])
-        pz = np.float64(V[v, 2])
-        m0 = m1 = m2 = m3 = m4 = m5 = m6 = m7 = m8 = m9 = m10 = m11 = 0.0
-        for j in range(k):
-            wj = np.float64(w[j, v])
-            if wj == 0.0:
-                break
-            b = idx[j, v]
-            m0 += wj * M[b, 0]
-            m1 += wj * M[b, 1]
-            m2 += wj * M[b, 2]
-            m3 += wj * M[b, 3]
-            m4 += wj * M[b, 4]
-            m5 += wj * M[b, 5]
-            m6 += wj * M[b, 6]
-            m7 += wj * M[b, 7]
-            m8 += wj * M[b, 8]
-            m9 += wj * M[b, 9]
-            m10 += wj * M[b, 10]
-            m11 += wj * M[b, 11]
-        out[v, 0] = m0 * px + m1 * py + m2 * pz + m9
-        out[v, 1] = m3 * px + m4 * py + m5 * pz + m10
-        out[v, 2] = m6 * px + m7 * py + m8 * pz + m11
-        if want_normals:
-            a, b2, c2 = _cofactor_apply(m0, m1, m2, m3, m4, m5, m6, m7, m8, np.float64(N[v, 0]),
-                                        np.float64(N[v, 1]), np.float64(N[v, 2]))
-            Nout[v, 0] = a
-            Nout[v, 1] = b2
-            Nout[v, 2] = c2
+    if k == 4:
+        for v in nb.prange(n):
+            _lbs_vertex(V, idx, w, M, out, N, Nout, want_normals, v, 4)
+    elif k == 8:
+        for v in nb.prange(n):
+            _lbs_vertex(V, idx, w, M, out, N, Nout, want_normals, v, 8)
+    else:
+        for v in nb.prange(n):
+            _lbs_vertex(V, idx, w, M, out, N, Nout, want_normals, v, k)
+
 
 
 # --------------------------------------------------------------------------- dual quaternions
@@ -186,61 +203,79 @@ def _dq_finish(lo, m, X, xoff, a0, a1, a2, a3, a4, a5, a6, a7, out, N, Nout, wan
             Nout[v, 2] = c2
 
 
-@nb.njit(parallel=True, **_JIT)
-def dqs(V, idx, w, Q, S, has_stretch, out, N, Nout, want_normals):
+@nb.njit(inline="always", **_JIT)
+def _dqs_vertex(V, idx, w, Q, S, has_stretch, out, N, Nout, want_normals, v, K):
     """Dual quaternion skinning; Q[i] = (qr (4), qd (4)).
 
     Stretches are blended linearly in rest space first (Kavan et al. 2008, non-rigid
     bone transforms): p_s = p + sum_i w_i c_i (u_i . p - u_i . a_i), with
     S[i] = (c_i = (sigma_i - 1) u_i (3), u_i (3), u_i . a_i). Per-vertex scalar loop:
     with only table look-ups per bone, scalar loads beat SIMD gathers here (measured).
+    One vertex v, ``K`` slots.
+    """
+    px = np.float64(V[v, 0])
+    py = np.float64(V[v, 1])
+    pz = np.float64(V[v, 2])
+    b0 = idx[0, v]
+    sx = px
+    sy = py
+    sz = pz
+    r0 = r1 = r2 = r3 = d0 = d1 = d2 = d3 = 0.0
+    for j in range(K):
+        wj = np.float64(w[j, v])
+        b = idx[j, v]
+        if has_stretch:
+            f = wj * (S[b, 3] * px + S[b, 4] * py + S[b, 5] * pz - S[b, 6])
+            sx += f * S[b, 0]
+            sy += f * S[b, 1]
+            sz += f * S[b, 2]
+        # pivot hemisphere: flip into the side of the largest-weight bone
+        dot = Q[b, 0] * Q[b0, 0] + Q[b, 1] * Q[b0, 1] + Q[b, 2] * Q[b0, 2] + Q[b, 3] * Q[b0, 3]
+        wj = wj if dot >= 0.0 else -wj
+        r0 += wj * Q[b, 0]
+        r1 += wj * Q[b, 1]
+        r2 += wj * Q[b, 2]
+        r3 += wj * Q[b, 3]
+        d0 += wj * Q[b, 4]
+        d1 += wj * Q[b, 5]
+        d2 += wj * Q[b, 6]
+        d3 += wj * Q[b, 7]
+    x, y, z, r0, r1, r2, r3 = _dq_apply(r0, r1, r2, r3, d0, d1, d2, d3, sx, sy, sz)
+    out[v, 0] = x
+    out[v, 1] = y
+    out[v, 2] = z
+    if want_normals:
+        a, b2, c2 = _rotate_normal(r0, r1, r2, r3, np.float64(N[v, 0]),
+                                   np.float64(N[v, 1]), np.float64(N[v, 2]))
+        Nout[v, 0] = a
+        Nout[v, 1] = b2
+        Nout[v, 2] = c2
+
+
+@nb.njit(parallel=True, **_JIT)
+def dqs(V, idx, w, Q, S, has_stretch, out, N, Nout, want_normals):
+    """Multi-threaded pass over the vertices; see ``_dqs_vertex``.
+
+    Layouts with 4 or 8 slots get a loop with a constant trip count, which the
+    compiler unrolls into straight-line code (measured 20-30% faster than a loop
+    over a run-time slot count).
     """
     k, n = idx.shape
-    for v in nb.prange(n):
-        px = np.float64(V[v, 0])
-        py = np.float64(V[v, 1])
-        pz = np.float64(V[v, 2])
-        b0 = idx[0, v]
-        sx = px
-        sy = py
-        sz = pz
-        r0 = r1 = r2 = r3 = d0 = d1 = d2 = d3 = 0.0
-        for j in range(k):
-            wj = np.float64(w[j, v])
-            if wj == 0.0:
-                break
-            b = idx[j, v]
-            if has_stretch:
-                f = wj * (S[b, 3] * px + S[b, 4] * py + S[b, 5] * pz - S[b, 6])
-                sx += f * S[b, 0]
-                sy += f * S[b, 1]
-                sz += f * S[b, 2]
-            # pivot hemisphere: flip into the side of the largest-weight bone
-            dot = Q[b, 0] * Q[b0, 0] + Q[b, 1] * Q[b0, 1] + Q[b, 2] * Q[b0, 2] + Q[b, 3] * Q[b0, 3]
-            wj = wj if dot >= 0.0 else -wj
-            r0 += wj * Q[b, 0]
-            r1 += wj * Q[b, 1]
-            r2 += wj * Q[b, 2]
-            r3 += wj * Q[b, 3]
-            d0 += wj * Q[b, 4]
-            d1 += wj * Q[b, 5]
-            d2 += wj * Q[b, 6]
-            d3 += wj * Q[b, 7]
-        x, y, z, r0, r1, r2, r3 = _dq_apply(r0, r1, r2, r3, d0, d1, d2, d3, sx, sy, sz)
-        out[v, 0] = x
-        out[v, 1] = y
-        out[v, 2] = z
-        if want_normals:
-            a, b2, c2 = _rotate_normal(r0, r1, r2, r3, np.float64(N[v, 0]),
-                                       np.float64(N[v, 1]), np.float64(N[v, 2]))
-            Nout[v, 0] = a
-            Nout[v, 1] = b2
-            Nout[v, 2] = c2
+    if k == 4:
+        for v in nb.prange(n):
+            _dqs_vertex(V, idx, w, Q, S, has_stretch, out, N, Nout, want_normals, v, 4)
+    elif k == 8:
+        for v in nb.prange(n):
+            _dqs_vertex(V, idx, w, Q, S, has_stretch, out, N, Nout, want_normals, v, 8)
+    else:
+        for v in nb.prange(n):
+            _dqs_vertex(V, idx, w, Q, S, has_stretch, out, N, Nout, want_normals, v, k)
+
 
 
 # --------------------------------------------------------------------------- stbs-lbs
-@nb.njit(parallel=True, **_JIT)
-def stbs_lbs(V, idx, w, e, P, out, N, Nout, want_normals):
+@nb.njit(inline="always", **_JIT)
+def _stbs_lbs_vertex(V, idx, w, e, P, out, N, Nout, want_normals, v, K):
     """Eq. 5: p' = sum_i w_i [a'_i + R_i K_i(e_i) (e_i s_i + p - a_i)].
 
     Since K_i turns about u_i and s_i is parallel to u_i, with x = p - a_i:
@@ -249,58 +284,75 @@ def stbs_lbs(V, idx, w, e, P, out, N, Nout, want_normals):
     phi = (1 - e) theta_a + e theta_b. P[i] = (R (9), R[u]x (9), Ru (3), a (3),
     a' (3), (sigma-1) l Ru (3), u (3), theta_a, theta_b - theta_a).
     Per-vertex scalar loop: with 35 table entries per bone, scalar loads beat SIMD
-    gathers (measured side by side).
+    gathers (measured side by side). One vertex v, ``K`` slots.
+    """
+    px = np.float64(V[v, 0])
+    py = np.float64(V[v, 1])
+    pz = np.float64(V[v, 2])
+    ox = oy = oz = 0.0
+    m0 = m1 = m2 = m3 = m4 = m5 = m6 = m7 = m8 = 0.0
+    for j in range(K):
+        wj = np.float64(w[j, v])
+        b = idx[j, v]
+        ej = np.float64(e[j, v])
+        sn, cs = _sincos(P[b, 33] + ej * P[b, 34])
+        xx = px - P[b, 21]
+        xy = py - P[b, 22]
+        xz = pz - P[b, 23]
+        g = (1.0 - cs) * (P[b, 30] * xx + P[b, 31] * xy + P[b, 32] * xz)
+        ox += wj * (P[b, 24] + ej * P[b, 27] + g * P[b, 18]
+                    + cs * (P[b, 0] * xx + P[b, 1] * xy + P[b, 2] * xz)
+                    + sn * (P[b, 9] * xx + P[b, 10] * xy + P[b, 11] * xz))
+        oy += wj * (P[b, 25] + ej * P[b, 28] + g * P[b, 19]
+                    + cs * (P[b, 3] * xx + P[b, 4] * xy + P[b, 5] * xz)
+                    + sn * (P[b, 12] * xx + P[b, 13] * xy + P[b, 14] * xz))
+        oz += wj * (P[b, 26] + ej * P[b, 29] + g * P[b, 20]
+                    + cs * (P[b, 6] * xx + P[b, 7] * xy + P[b, 8] * xz)
+                    + sn * (P[b, 15] * xx + P[b, 16] * xy + P[b, 17] * xz))
+        if want_normals:
+            # blended linear part sum_i w_i R_i K_i(e_i), for the normals
+            wc = wj * cs
+            ws = wj * sn
+            wh = wj * (1.0 - cs)
+            m0 += wc * P[b, 0] + ws * P[b, 9] + wh * P[b, 18] * P[b, 30]
+            m1 += wc * P[b, 1] + ws * P[b, 10] + wh * P[b, 18] * P[b, 31]
+            m2 += wc * P[b, 2] + ws * P[b, 11] + wh * P[b, 18] * P[b, 32]
+            m3 += wc * P[b, 3] + ws * P[b, 12] + wh * P[b, 19] * P[b, 30]
+            m4 += wc * P[b, 4] + ws * P[b, 13] + wh * P[b, 19] * P[b, 31]
+            m5 += wc * P[b, 5] + ws * P[b, 14] + wh * P[b, 19] * P[b, 32]
+            m6 += wc * P[b, 6] + ws * P[b, 15] + wh * P[b, 20] * P[b, 30]
+            m7 += wc * P[b, 7] + ws * P[b, 16] + wh * P[b, 20] * P[b, 31]
+            m8 += wc * P[b, 8] + ws * P[b, 17] + wh * P[b, 20] * P[b, 32]
+    out[v, 0] = ox
+    out[v, 1] = oy
+    out[v, 2] = oz
+    if want_normals:
+        a, b2, c2 = _cofactor_apply(m0, m1, m2, m3, m4, m5, m6, m7, m8, np.float64(N[v, 0]),
+                                    np.float64(N[v, 1]), np.float64(N[v, 2]))
+        Nout[v, 0] = a
+        Nout[v, 1] = b2
+        Nout[v, 2] = c2
+
+
+@nb.njit(parallel=True, **_JIT)
+def stbs_lbs(V, idx, w, e, P, out, N, Nout, want_normals):
+    """Multi-threaded pass over the vertices; see ``_stbs_lbs_vertex``.
+
+    Layouts with 4 or 8 slots get a loop with a constant trip count, which the
+    compiler unrolls into straight-line code (measured 20-30% faster than a loop
+    over a run-time slot count).
     """
     k, n = idx.shape
-    for v in nb.prange(n):
-        px = np.float64(V[v, 0])
-        py = np.float64(V[v, 1])
-        pz = np.float64(V[v, 2])
-        ox = oy = oz = 0.0
-        m0 = m1 = m2 = m3 = m4 = m5 = m6 = m7 = m8 = 0.0
-        for j in range(k):
-            wj = np.float64(w[j, v])
-            if wj == 0.0:
-                break
-            b = idx[j, v]
-            ej = np.float64(e[j, v])
-            sn, cs = _sincos(P[b, 33] + ej * P[b, 34])
-            xx = px - P[b, 21]
-            xy = py - P[b, 22]
-            xz = pz - P[b, 23]
-            g = (1.0 - cs) * (P[b, 30] * xx + P[b, 31] * xy + P[b, 32] * xz)
-            ox += wj * (P[b, 24] + ej * P[b, 27] + g * P[b, 18]
-                        + cs * (P[b, 0] * xx + P[b, 1] * xy + P[b, 2] * xz)
-                        + sn * (P[b, 9] * xx + P[b, 10] * xy + P[b, 11] * xz))
-            oy += wj * (P[b, 25] + ej * P[b, 28] + g * P[b, 19]
-                        + cs * (P[b, 3] * xx + P[b, 4] * xy + P[b, 5] * xz)
-                        + sn * (P[b, 12] * xx + P[b, 13] * xy + P[b, 14] * xz))
-            oz += wj * (P[b, 26] + ej * P[b, 29] + g * P[b, 20]
-                        + cs * (P[b, 6] * xx + P[b, 7] * xy + P[b, 8] * xz)
-                        + sn * (P[b, 15] * xx + P[b, 16] * xy + P[b, 17] * xz))
-            if want_normals:
-                # blended linear part sum_i w_i R_i K_i(e_i), for the normals
-                wc = wj * cs
-                ws = wj * sn
-                wh = wj * (1.0 - cs)
-                m0 += wc * P[b, 0] + ws * P[b, 9] + wh * P[b, 18] * P[b, 30]
-                m1 += wc * P[b, 1] + ws * P[b, 10] + wh * P[b, 18] * P[b, 31]
-                m2 += wc * P[b, 2] + ws * P[b, 11] + wh * P[b, 18] * P[b, 32]
-                m3 += wc * P[b, 3] + ws * P[b, 12] + wh * P[b, 19] * P[b, 30]
-                m4 += wc * P[b, 4] + ws * P[b, 13] + wh * P[b, 19] * P[b, 31]
-                m5 += wc * P[b, 5] + ws * P[b, 14] + wh * P[b, 19] * P[b, 32]
-                m6 += wc * P[b, 6] + ws * P[b, 15] + wh * P[b, 20] * P[b, 30]
-                m7 += wc * P[b, 7] + ws * P[b, 16] + wh * P[b, 20] * P[b, 31]
-                m8 += wc * P[b, 8] + ws * P[b, 17] + wh * P[b, 20] * P[b, 32]
-        out[v, 0] = ox
-        out[v, 1] = oy
-        out[v, 2] = oz
-        if want_normals:
-            a, b2, c2 = _cofactor_apply(m0, m1, m2, m3, m4, m5, m6, m7, m8, np.float64(N[v, 0]),
-                                        np.float64(N[v, 1]), np.float64(N[v, 2]))
-            Nout[v, 0] = a
-            Nout[v, 1] = b2
-            Nout[v, 2] = c2
+    if k == 4:
+        for v in nb.prange(n):
+            _stbs_lbs_vertex(V, idx, w, e, P, out, N, Nout, want_normals, v, 4)
+    elif k == 8:
+        for v in nb.prange(n):
+            _stbs_lbs_vertex(V, idx, w, e, P, out, N, Nout, want_normals, v, 8)
+    else:
+        for v in nb.prange(n):
+            _stbs_lbs_vertex(V, idx, w, e, P, out, N, Nout, want_normals, v, k)
+
 
 
 # --------------------------------------------------------------------------- stbs-dqs

@@ -60,7 +60,8 @@ def _gather(E, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
     return np.where(key[pos] == want, data[pos], 0.0)
 
 
-def top_k(W, E=None, *, max_influences: int | None = None, dtype=np.float64) -> TopK:
+def top_k(W, E=None, *, max_influences: int | None = None, dtype=np.float64,
+          pad: tuple[int, ...] = (4, 8)) -> TopK:
     """Build the layout from validated W (n, b) and optional E (n, b).
 
     Parameters
@@ -74,6 +75,9 @@ def top_k(W, E=None, *, max_influences: int | None = None, dtype=np.float64) -> 
         limit is 4). Default keeps every non-zero weight, so the result is exact.
     dtype : float32 or float64
         Storage dtype of ``w`` and ``e``.
+    pad : tuple of int
+        Slot counts the kernels specialise for: k is padded (weight 0) up to the
+        smallest of these that holds it.
     """
     n, b = W.shape
     if sp.issparse(W):
@@ -104,6 +108,10 @@ def top_k(W, E=None, *, max_influences: int | None = None, dtype=np.float64) -> 
             k = int(max_influences)
             idx, w = idx[:, :k], w[:, :k]
             w = w / w.sum(axis=1, keepdims=True)
+    target = next((p for p in sorted(pad) if p >= k), k)
+    if target > k:
+        idx = np.hstack([idx, np.zeros((n, target - k), dtype=idx.dtype)])
+        w = np.hstack([w, np.zeros((n, target - k))])
     idx = np.where(w > 0, idx, 0)
     e = None
     if E is not None:
