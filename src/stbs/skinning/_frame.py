@@ -23,12 +23,18 @@ def _embed(pose: Pose) -> tuple[np.ndarray, ...]:
 
 
 def lbs_table(pose: Pose) -> np.ndarray:
-    """(b, 12): A_i = R_i S_i row-major, t_i = a'_i - A_i a_i (eq. 1-3)."""
+    """(b, 16): columns of [A_i | t_i], each padded to 4 rows (eq. 1-3).
+
+    A_i = R_i S_i and t_i = a'_i - A_i a_i; column c sits at ``[4c, 4c + 4)``.
+    """
     a, u, _, R, ap = _embed(pose)
     S = np.eye(3) + (pose.stretch - 1.0)[:, None, None] * np.einsum("bi,bj->bij", u, u)
     A = R @ S
     t = ap - np.einsum("bij,bj->bi", A, a)
-    return np.ascontiguousarray(np.hstack([A.reshape(-1, 9), t]))
+    T = np.zeros((len(a), 4, 4))
+    T[:, :3, :3] = np.swapaxes(A, 1, 2)
+    T[:, 3, :3] = t
+    return np.ascontiguousarray(T.reshape(-1, 16))
 
 
 def dqs_tables(pose: Pose) -> tuple[np.ndarray, np.ndarray, bool]:

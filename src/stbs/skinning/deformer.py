@@ -104,8 +104,9 @@ class Deformer:
         lay = self.layout
         N = self._N if want_normals else self._dummy
         if self.method == "lbs":
-            _kernels.lbs(self._V, lay.idx, lay.w, _frame.lbs_table(pose), out, N, Nout,
-                         want_normals)
+            with _kernels.slp():
+                _kernels.lbs(self._V, lay.idx, lay.w, _frame.lbs_table(pose), out, N, Nout,
+                             want_normals)
         elif self.method == "dqs":
             Q, S, has_stretch = _frame.dqs_tables(pose)
             _kernels.dqs(self._V, lay.idx, lay.w, Q, S, has_stretch, out, N, Nout, want_normals)
