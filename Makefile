@@ -31,7 +31,11 @@ lint: install-test
 test: install-test lint
 	$(BIN)/python -m pytest -q
 
+# Eigen headers for the libigl C++ DQS peer (see docs/benchmarks.md); optional.
 bench: install-test
+	@test -f /usr/include/eigen3/Eigen/Core || { command -v apt-get >/dev/null && \
+	  apt-get update -qq && apt-get install -y -qq libeigen3-dev; } || \
+	  echo "note: no Eigen headers; the igl-dqs peer will be skipped"
 	$(BIN)/stbs bench
 
 clean:

@@ -140,11 +140,14 @@ def test_format_table_names_every_method_and_peer(rows, small_bw):
 
 def test_check_targets_compares_at_1m_float64():
     base = {"size": 1_000_000, "dtype": "float64", "status": "ok"}
-    rows = [dict(base, method="lbs", ratio_to_bound=1.2, ns_per_vertex=5.0),
-            dict(base, method="stbs-dqs", ratio_to_bound=3.0, ns_per_vertex=30.0),
-            dict(base, method="igl-dqs", ratio_to_bound=4.0, ns_per_vertex=29.0)]
+    rows = [dict(base, method="lbs", bound_ns_per_vertex=4.0, ns_per_vertex=7.0,
+                 min_ns_per_vertex=5.0),
+            dict(base, method="stbs-dqs", ns_per_vertex=30.0, min_ns_per_vertex=28.0),
+            dict(base, method="igl-dqs", ns_per_vertex=29.0, min_ns_per_vertex=28.5)]
     t = bench.check_targets(rows)
-    assert [x["met"] for x in t] == [True, False]
+    # median: lbs 1.75x (missed), stbs-dqs 30 > 29 (missed); best: 1.25x, 28 <= 28.5
+    assert [x["met"] for x in t] == [False, False, True, True]
+    assert [x["value"] for x in t] == [1.75, 30.0, 1.25, 28.0]
     assert bench.check_targets([dict(r, size=10) for r in rows]) == []
 
 

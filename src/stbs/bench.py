@@ -851,19 +851,28 @@ def check_targets(rows: Sequence[dict], size: int = TARGET_SIZE,
                   dtype: str = TARGET_DTYPE) -> list[dict]:
     """The issue's targets at ``size`` vertices, ``dtype``: lbs within 1.5x of its
     bandwidth bound; stbs-dqs (stretch and twist on every bone) no slower than
-    libigl's plain C++ DQS in the same run. Targets whose rows are absent are left out."""
+    libigl's plain C++ DQS in the same run. Targets whose rows are absent are left out.
+
+    Each target is judged twice, on the median and on the best (minimum) frame time,
+    the same statistic for us and the peer; on a shared 2-core machine the median
+    carries other tenants' noise, the best frame is what the code can do (as timeit
+    reports)."""
     get = {(r["size"], r["dtype"], r["method"]): r for r in rows if r["status"] == "ok"}
     out = []
     lbs = get.get((size, dtype, "lbs"))
-    if lbs is not None:
-        out.append({"target": f"lbs <= {TARGET_LBS_RATIO}x bandwidth bound ({size:,}, {dtype})",
-                    "value": lbs["ratio_to_bound"], "limit": TARGET_LBS_RATIO,
-                    "met": lbs["ratio_to_bound"] <= TARGET_LBS_RATIO})
-    ours, theirs = get.get((size, dtype, "stbs-dqs")), get.get((size, dtype, "igl-dqs"))
-    if ours is not None and theirs is not None:
-        out.append({"target": f"stbs-dqs <= libigl C++ dqs ns/vertex ({size:,}, {dtype})",
-                    "value": ours["ns_per_vertex"], "limit": theirs["ns_per_vertex"],
-                    "met": ours["ns_per_vertex"] <= theirs["ns_per_vertex"]})
+    for stat, key in (("median", "ns_per_vertex"), ("best", "min_ns_per_vertex")):
+        if lbs is not None:
+            ratio = lbs[key] / lbs["bound_ns_per_vertex"]
+            out.append({"target": f"lbs <= {TARGET_LBS_RATIO}x bandwidth bound "
+                                  f"({size:,}, {dtype}, {stat})",
+                        "value": ratio, "limit": TARGET_LBS_RATIO,
+                        "met": ratio <= TARGET_LBS_RATIO})
+        ours, theirs = get.get((size, dtype, "stbs-dqs")), get.get((size, dtype, "igl-dqs"))
+        if ours is not None and theirs is not None:
+            out.append({"target": f"stbs-dqs <= libigl C++ dqs ns/vertex "
+                                  f"({size:,}, {dtype}, {stat})",
+                        "value": ours[key], "limit": theirs[key],
+                        "met": ours[key] <= theirs[key]})
     return out
 
 

@@ -212,22 +212,28 @@ def _rotate_normal(r0, r1, r2, r3, nx, ny, nz):
 
 
 @nb.njit(inline="always", **_JIT)
-def _dq_finish(lo, m, X, xoff, a0, a1, a2, a3, a4, a5, a6, a7, out, N, Nout, want_normals):
-    """Apply one block's blended dual quaternions to points X[xoff + i] (and turn normals)."""
+def _dq_store(v, r0, r1, r2, r3, d0, d1, d2, d3, px, py, pz, out, N, Nout, want_normals):
+    """Apply the blended dual quaternion (r, d) to p, store vertex v (and its normal)."""
+    x, y, z, r0, r1, r2, r3 = _dq_apply(r0, r1, r2, r3, d0, d1, d2, d3, px, py, pz)
+    out[v, 0] = x
+    out[v, 1] = y
+    out[v, 2] = z
+    if want_normals:
+        a, b2, c2 = _rotate_normal(r0, r1, r2, r3, np.float64(N[v, 0]),
+                                   np.float64(N[v, 1]), np.float64(N[v, 2]))
+        Nout[v, 0] = a
+        Nout[v, 1] = b2
+        Nout[v, 2] = c2
+
+
+@nb.njit(inline="always", **_JIT)
+def _dq_finish(lo, m, V, a0, a1, a2, a3, a4, a5, a6, a7, out, N, Nout, want_normals):
+    """Apply one block's blended dual quaternions to its vertices lo .. lo + m - 1."""
     for i in range(m):
         v = lo + i
-        x, y, z, r0, r1, r2, r3 = _dq_apply(a0[i], a1[i], a2[i], a3[i], a4[i], a5[i], a6[i],
-                                            a7[i], np.float64(X[xoff + i, 0]),
-                                            np.float64(X[xoff + i, 1]), np.float64(X[xoff + i, 2]))
-        out[v, 0] = x
-        out[v, 1] = y
-        out[v, 2] = z
-        if want_normals:
-            a, b2, c2 = _rotate_normal(r0, r1, r2, r3, np.float64(N[v, 0]),
-                                       np.float64(N[v, 1]), np.float64(N[v, 2]))
-            Nout[v, 0] = a
-            Nout[v, 1] = b2
-            Nout[v, 2] = c2
+        _dq_store(v, a0[i], a1[i], a2[i], a3[i], a4[i], a5[i], a6[i], a7[i],
+                  np.float64(V[v, 0]), np.float64(V[v, 1]), np.float64(V[v, 2]),
+                  out, N, Nout, want_normals)
 
 
 @nb.njit(inline="always", **_JIT)
@@ -267,16 +273,7 @@ def _dqs_vertex(V, idx, w, Q, S, has_stretch, out, N, Nout, want_normals, v, K):
         d1 += wj * Q[b, 5]
         d2 += wj * Q[b, 6]
         d3 += wj * Q[b, 7]
-    x, y, z, r0, r1, r2, r3 = _dq_apply(r0, r1, r2, r3, d0, d1, d2, d3, sx, sy, sz)
-    out[v, 0] = x
-    out[v, 1] = y
-    out[v, 2] = z
-    if want_normals:
-        a, b2, c2 = _rotate_normal(r0, r1, r2, r3, np.float64(N[v, 0]),
-                                   np.float64(N[v, 1]), np.float64(N[v, 2]))
-        Nout[v, 0] = a
-        Nout[v, 1] = b2
-        Nout[v, 2] = c2
+    _dq_store(v, r0, r1, r2, r3, d0, d1, d2, d3, sx, sy, sz, out, N, Nout, want_normals)
 
 
 @nb.njit(parallel=True, **_JIT)
@@ -442,4 +439,4 @@ def stbs_dqs(V, idx, w, e, P, out, N, Nout, want_normals):
                 a5[i] += wj * (ch * P[b, 9] + sh * P[b, 13] + fc * P[b, 5] - fs * P[b, 1])
                 a6[i] += wj * (ch * P[b, 10] + sh * P[b, 14] + fc * P[b, 6] - fs * P[b, 2])
                 a7[i] += wj * (ch * P[b, 11] + sh * P[b, 15] + fc * P[b, 7] - fs * P[b, 3])
-        _dq_finish(lo, m, V, lo, a0, a1, a2, a3, a4, a5, a6, a7, out, N, Nout, want_normals)
+        _dq_finish(lo, m, V, a0, a1, a2, a3, a4, a5, a6, a7, out, N, Nout, want_normals)
