@@ -16,7 +16,7 @@ $(VENV)/.stamp-install: pyproject.toml | $(BIN)/python
 	@touch $@
 
 $(VENV)/.stamp-test: pyproject.toml | $(BIN)/python
-	$(PIP) install -e ".[test,bench]"
+	$(PIP) install -e ".[test,bench,embree,triangle,tetgen]"
 	@touch $@
 
 install: $(VENV)/.stamp-install

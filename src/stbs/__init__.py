@@ -26,10 +26,17 @@ _EXPORTS = {
     "load_rig": "stbs.io",
     "save_rig": "stbs.io",
     "read_pose": "stbs.posefile",
+    "bone_heat": "stbs.weights",
+    "SplineFilter": "stbs.weights",
+    "triangulate_2d": "stbs.meshing",
+    "tetrahedralize": "stbs.meshing",
+    "outline_from_image": "stbs.meshing",
 }
 
 __all__ = ["Skeleton", "Pose", "forward_kinematics", "Deformer", "deform", "METHODS",
-           "endpoint_weights", "Rig", "load_rig", "save_rig", "read_pose", "__version__"]
+           "endpoint_weights", "Rig", "load_rig", "save_rig", "read_pose", "bone_heat",
+           "SplineFilter", "triangulate_2d", "tetrahedralize", "outline_from_image",
+           "__version__"]
 
 
 def __getattr__(name: str):
@@ -47,8 +54,9 @@ def __dir__() -> list[str]:
 
 if TYPE_CHECKING:  # pragma: no cover - for type checkers and IDEs
     from .io import Rig, load_rig, save_rig
+    from .meshing import outline_from_image, tetrahedralize, triangulate_2d
     from .pose import Pose, forward_kinematics
     from .posefile import read_pose
     from .skeleton import Skeleton
     from .skinning import METHODS, Deformer, deform
-    from .weights import endpoint_weights
+    from .weights import SplineFilter, bone_heat, endpoint_weights

@@ -1,15 +1,63 @@
-"""Endpoint weights e_i(p) in [0, 1]: 0 at a bone's start, 1 at its end (paper §2.2-2.3)."""
+"""Endpoint weights e_i(p) in [0, 1]: 0 at a bone's start, 1 at its end (paper §2.2-2.3).
+
+Methods (``endpoint_weights(..., method=...)``; details in docs/endpoint-weights.md):
+
+==============  =================================================================
+``projection``  eq. 8, the clamped position of p's projection along the bone
+``idw``         eq. 9 inverse-distance joint weights (exponent ``alpha >= 2``), eq. 7
+``heat``        bone heat with each joint a bone shrunk to a point (3D surface
+                ``F``, or a 2D shape), joint weights, eq. 7
+``bbw``         BBW solved for e_i directly: 0 at ``a_i``, 1 at ``b_i``, ``t`` at mesh
+                vertices on the bone (linear along it); needs ``T`` (3D) or ``F`` (2D)
+``bbw-joints``  BBW joint weights (1 at the joint, 0 at the other joints), eq. 7
+==============  =================================================================
+
+The solved methods (heat, bbw, bbw-joints) are restricted, bone by bone, to where the
+bone weight ``W[:, i] > threshold`` (paper §3, 1e-7), when ``W`` is given.
+"""
 
 from __future__ import annotations
 
+import warnings
 from typing import Literal
 
 import numpy as np
+import scipy.sparse as sp
+from scipy.sparse.csgraph import connected_components
 
 from .. import _checks
 from ..skeleton import Skeleton
+from . import _raycast
 
-ENDPOINT_METHODS: tuple[str, ...] = ("projection",)
+__all__ = ["ENDPOINT_METHODS", "IDW_NORMALIZATIONS", "DEFAULT_THRESHOLD", "endpoint_weights",
+           "projection", "idw", "idw_joint_weights", "heat_endpoint", "bbw_endpoint",
+           "joints_to_endpoint"]
+
+EndpointMethod = Literal["projection", "idw", "heat", "bbw", "bbw-joints"]
+ENDPOINT_METHODS: tuple[str, ...] = ("projection", "idw", "heat", "bbw", "bbw-joints")
+IdwNormalization = Literal["bone", "all"]
+IDW_NORMALIZATIONS: tuple[str, ...] = ("bone", "all")
+#: Paper §3: endpoint weights are solved only where the bone weight exceeds this.
+DEFAULT_THRESHOLD = 1e-7
+#: A mesh vertex within this fraction of the bounding-box diagonal of a bone (or joint)
+#: counts as lying on it (skeleton samples inserted by a mesher carry only rounding
+#: error); the same tolerance as :mod:`stbs.weights.boundary` uses for bone weights.
+ON_BONE_TOL = 1e-6
+
+
+def _vertices_for(V, sk: Skeleton) -> np.ndarray:
+    V = _checks.vertices(V)
+    if V.shape[1] != sk.dim:
+        raise ValueError(f"V must have shape ({V.shape[0]}, {sk.dim}) to match the skeleton, "
+                         f"got {V.shape}")
+    return V
+
+
+def _bone_params(V: np.ndarray, sk: Skeleton) -> np.ndarray:
+    """(n, b) unclamped parameter of p's projection onto each bone's line."""
+    A = sk.A
+    D = sk.B - A
+    return (V @ D.T - np.sum(A * D, axis=1)) / (sk.lengths**2)
 
 
 def projection(V, sk: Skeleton) -> np.ndarray:
@@ -28,14 +76,8 @@ def projection(V, sk: Skeleton) -> np.ndarray:
     E : (n, b) float64
         Only C0 where the projection leaves the segment (paper Fig. 7).
     """
-    V = _checks.vertices(V)
-    if V.shape[1] != sk.dim:
-        raise ValueError(f"V must have shape ({V.shape[0]}, {sk.dim}) to match the skeleton, "
-                         f"got {V.shape}")
-    A = sk.A
-    D = sk.B - A
-    t = (V @ D.T - np.sum(A * D, axis=1)) / (sk.lengths**2)
-    return np.clip(t, 0.0, 1.0)
+    V = _vertices_for(V, sk)
+    return np.clip(_bone_params(V, sk), 0.0, 1.0)
 
 
 def joints_to_endpoint(J, sk: Skeleton) -> np.ndarray:
@@ -46,19 +88,429 @@ def joints_to_endpoint(J, sk: Skeleton) -> np.ndarray:
     return 0.5 * ((1.0 - J[:, sk.BE[:, 0]]) + J[:, sk.BE[:, 1]])
 
 
-def endpoint_weights(V, sk: Skeleton, method: Literal["projection"] = "projection", *,
-                     W=None, F=None, T=None) -> np.ndarray:
+def _check_alpha(alpha) -> float:
+    if not (isinstance(alpha, (int, float, np.floating, np.integer))
+            and not isinstance(alpha, bool) and np.isfinite(alpha) and alpha >= 2):
+        raise ValueError(f"alpha must be a finite number >= 2 (eq. 9 weights are smooth at "
+                         f"the joints only for alpha >= 2), got {alpha!r}")
+    return float(alpha)
+
+
+def _joint_distances(V: np.ndarray, C: np.ndarray) -> np.ndarray:
+    return np.sqrt(np.maximum(
+        np.sum(V**2, axis=1)[:, None] - 2.0 * V @ C.T + np.sum(C**2, axis=1)[None, :], 0.0))
+
+
+def idw_joint_weights(V, sk: Skeleton, *, alpha: float = 2.0) -> np.ndarray:
+    """Eq. 9 joint weights normalised over all joints (Shepard): ``d_k^-a / sum_l d_l^-a``.
+
+    Parameters
+    ----------
+    V : (n, d) float
+    sk : Skeleton
+    alpha : float
+        Exponent, >= 2.
+
+    Returns
+    -------
+    J : (n, j) float64
+        In [0, 1], rows sum to 1, ``J[:, k] = 1`` at joint k.
+    """
+    V = _vertices_for(V, sk)
+    alpha = _check_alpha(alpha)
+    Dj = _joint_distances(V, sk.C)
+    dmin = Dj.min(axis=1, keepdims=True)
+    # (d_min / d_k)^alpha in [0, 1] is the same ratio without overflow near a joint.
+    at_joint = dmin[:, 0] == 0
+    R = np.divide(dmin, Dj, out=np.zeros_like(Dj), where=Dj > 0) ** alpha
+    R[at_joint] = (Dj[at_joint] == 0).astype(float)
+    return R / R.sum(axis=1, keepdims=True)
+
+
+def idw(V, sk: Skeleton, *, alpha: float = 2.0,
+        normalize: IdwNormalization = "bone") -> np.ndarray:
+    """Inverse-distance endpoint weights (eq. 9, then eq. 7).
+
+    Parameters
+    ----------
+    V : (n, d) float
+    sk : Skeleton
+    alpha : float
+        Exponent of eq. 9, >= 2 (smooth at the joints).
+    normalize : {"bone", "all"}
+        ``"bone"`` (default): joint weights normalised over the bone's own two
+        joints, so ``j_a + j_b = 1`` and eq. 7 reduces to
+        ``e_i = d_a^alpha / (d_a^alpha + d_b^alpha)``; no other joint pulls e_i.
+        ``"all"``: normalised over all joints (:func:`idw_joint_weights`); near a
+        neighbouring joint both ``j_a`` and ``j_b`` vanish and e_i falls back to 0.5,
+        even where the bone still has weight. Either way e_i regresses to 0.5 far
+        away (the fall-off the paper notes).
+
+    Returns
+    -------
+    E : (n, b) float64
+        In [0, 1]; exactly 0 at ``a_i`` and 1 at ``b_i``; smooth, but shape-unaware.
+    """
+    V = _vertices_for(V, sk)
+    alpha = _check_alpha(alpha)
+    _checks.choice("normalize", normalize, IDW_NORMALIZATIONS)
+    if normalize == "all":
+        return joints_to_endpoint(idw_joint_weights(V, sk, alpha=alpha), sk)
+    Dj = _joint_distances(V, sk.C)
+    da, db = Dj[:, sk.BE[:, 0]], Dj[:, sk.BE[:, 1]]
+    r = da / (da + db)            # a != b, so the sum is positive
+    ra = r**alpha
+    return ra / (ra + (1.0 - r) ** alpha)
+
+
+# -- restriction (paper §3) -------------------------------------------------------------
+def _threshold(threshold) -> float | None:
+    if threshold is None:
+        return None
+    if not (isinstance(threshold, (int, float, np.floating, np.integer))
+            and not isinstance(threshold, bool) and 0 <= threshold < 1):
+        raise ValueError(f"threshold must be a number in [0, 1) or None, got {threshold!r}")
+    return float(threshold)
+
+
+def _support_elements(E: np.ndarray, Wi: np.ndarray, threshold: float,
+                      extra: np.ndarray | None = None) -> np.ndarray:
+    """Elements with a vertex where ``w_i > threshold``, plus those touching ``extra``."""
+    mask = (Wi[E] > threshold).any(axis=1)
+    if extra is not None and extra.size:
+        touch = np.zeros(Wi.shape[0], dtype=bool)
+        touch[extra] = True
+        mask |= touch[E].any(axis=1)
+    return mask
+
+
+def _column(W, i: int) -> np.ndarray:
+    if sp.issparse(W):
+        return np.asarray(W[:, [i]].toarray()).ravel()
+    return W[:, i]
+
+
+def _bone_weights(W, n: int, b: int):
+    if W is None:
+        return None
+    return _checks.bone_weights(W, n, b)
+
+
+# -- heat --------------------------------------------------------------------------------
+def heat_endpoint(V, F, sk: Skeleton, *, W=None, threshold: float | None = DEFAULT_THRESHOLD,
+                  backend: _raycast.RayBackend = "auto") -> np.ndarray:
+    """Bone-heat endpoint weights: joints as bones shrunk to points, then eq. 7.
+
+    Parameters
+    ----------
+    V : (n, 3) or (n, 2) float
+    F : (f, 3) int
+        The surface (3D) or the shape's triangles (2D).
+    sk : Skeleton
+    W : (n, b) float, optional
+        Bone weights. With ``threshold``, bone i is solved only on the triangles
+        touching ``W[:, i] > threshold``; elsewhere e_i is the projection (eq. 8),
+        which is never read there (``w_i`` is ~0). Without ``W``: one solve for
+        all joints on the whole shape.
+    threshold : float or None
+        The restriction threshold (paper §3: 1e-7); None disables it.
+    backend : {"auto", "embree", "numpy"}
+        Visibility ray casting (3D).
+
+    Returns
+    -------
+    E : (n, b) float64
+        In [0, 1]. Vertices in no triangle get the projection.
+
+    Raises
+    ------
+    ValueError
+        When a joint is nearest-visible from no vertex of the region solved (its
+        heat weight would be 0 everywhere); the message names the joint and bone.
+    """
+    from .heat import BoneHeatSolver
+
+    V = _vertices_for(V, sk)
+    threshold = _threshold(threshold)
+    n, b = V.shape[0], sk.n_bones
+    W = _bone_weights(W, n, b)
+    solver = BoneHeatSolver(V, F, backend=backend)
+    F = solver.F
+    labels = [f"joint {k}" for k in range(sk.n_joints)]
+    E = projection(V, sk)
+    if W is None or threshold is None:
+        J, _ = solver.solve(sk.C, labels=labels)
+        used = np.unique(F)
+        E[used] = joints_to_endpoint(J[used], sk)
+        return E
+    for i in range(b):
+        faces = _support_elements(F, _column(W, i), threshold)
+        if not faces.any():
+            continue
+        a, e = sk.BE[i]
+        X, _ = solver.solve(sk.C, faces=faces, columns=[a, e], labels=labels,
+                            context=f"bone {i} ({sk.names[i]!r}), restricted to "
+                                    f"w > {threshold:g}: ")
+        used = np.unique(F[faces])
+        E[used, i] = 0.5 * ((1.0 - X[used, 0]) + X[used, 1])
+    return np.clip(E, 0.0, 1.0)
+
+
+# -- BBW ---------------------------------------------------------------------------------
+def _bbw_solver_class():
+    try:
+        from .bbw import BBWSolver
+    except ImportError as exc:  # pragma: no cover - bbw ships with the package
+        raise ImportError(f"BBW endpoint weights need stbs.weights.bbw: {exc}") from None
+    return BBWSolver
+
+
+def _elements(V: np.ndarray, F, T) -> np.ndarray:
+    d = V.shape[1]
+    if T is not None:
+        E = _checks.index_array("T", T, ndim=2)
+        want = 4 if d == 3 else 3
+        if E.shape[1] != want:
+            raise ValueError(f"T must have shape (t, {want}) for {d}D vertices, got {E.shape}")
+        name = "T"
+    elif d == 2 and F is not None:
+        E = _checks.index_array("F", F, ndim=2, shape=(None, 3))
+        name = "F"
+    else:
+        raise ValueError("BBW endpoint weights need a volume mesh: tetrahedra T (t, 4) in 3D, "
+                         "or triangles F (f, 3) (or T) in 2D; got "
+                         + ("F only (a surface) in 3D" if F is not None else "neither F nor T"))
+    if E.shape[0] == 0:
+        raise ValueError(f"{name} must hold at least one element, got shape {E.shape}")
+    if E.min() < 0 or E.max() >= V.shape[0]:
+        bad = int(E.min()) if E.min() < 0 else int(E.max())
+        raise ValueError(f"{name} must hold vertex indices in 0..{V.shape[0] - 1}, got {bad}")
+    return E
+
+
+def _joint_vertices(V: np.ndarray, used: np.ndarray, sk: Skeleton, tol: float,
+                    joints) -> dict[int, int]:
+    """Mesh vertex (among ``used``) of each joint: the one on it, else the nearest (warned)."""
+    out = {}
+    joints = sorted(set(int(k) for k in joints))
+    Dj = _joint_distances(V[used], sk.C[joints])
+    far = []
+    for col, k in enumerate(joints):
+        j = int(np.argmin(Dj[:, col]))
+        v = int(used[j])
+        out[k] = v
+        if Dj[j, col] > tol:
+            far.append(f"joint {k} -> vertex {v} at distance {Dj[j, col]:.3g}")
+    if far:
+        warnings.warn("BBW endpoint weights: no mesh vertex lies on "
+                      f"{len(far)} joint(s); using the nearest vertices: " + "; ".join(far),
+                      UserWarning, stacklevel=4)
+    return out
+
+
+def _on_bone(V: np.ndarray, used: np.ndarray, sk: Skeleton, i: int,
+             tol: float) -> tuple[np.ndarray, np.ndarray]:
+    """Vertices (among ``used``) within ``tol`` of bone i's segment, and their t in [0, 1]."""
+    a, d = sk.A[i], sk.B[i] - sk.A[i]
+    t = np.clip(((V[used] - a) @ d) / sk.lengths[i] ** 2, 0.0, 1.0)
+    dist = np.linalg.norm(V[used] - (a + t[:, None] * d), axis=1)
+    on = dist <= tol
+    return used[on], t[on]
+
+
+def _solve_region(BBWSolver, V: np.ndarray, E: np.ndarray, mask: np.ndarray | None,
+                  bidx: np.ndarray, bc: np.ndarray, cache: dict):
+    """BBW on the elements ``E[mask]`` (all when None) with constraints ``bidx``/``bc``.
+
+    Components of the region holding no constrained vertex are dropped (their
+    QP would be unconstrained). Returns the solved vertices and their values.
+    """
+    Es = E if mask is None else E[mask]
+    verts = np.unique(Es)
+    n = V.shape[0]
+    s = Es.shape[1]
+    adj = sp.coo_matrix((np.ones(s * len(Es)),
+                         (Es.ravel(), np.roll(Es, 1, axis=1).ravel())), shape=(n, n))
+    _, comp = connected_components(adj, directed=False)
+    keep_comp = np.unique(comp[bidx])
+    keep_v = np.zeros(n, dtype=bool)
+    keep_v[verts] = np.isin(comp[verts], keep_comp)
+    if not keep_v[verts].all():
+        Es = Es[keep_v[Es[:, 0]]]
+        verts = np.unique(Es)
+    if mask is None and verts.size == n and "full" in cache:
+        solver = cache["full"]
+        local, Vs = np.arange(n), V
+    else:
+        local = np.full(n, -1, dtype=np.int64)
+        local[verts] = np.arange(verts.size)
+        Vs = V[verts]
+        solver = BBWSolver(Vs, local[Es])
+        if mask is None and verts.size == n:
+            cache["full"] = solver
+    X = np.asarray(solver.solve(local[bidx], bc), dtype=float).reshape(Vs.shape[0], -1)
+    return verts, np.clip(X, 0.0, 1.0)
+
+
+def bbw_endpoint(V, sk: Skeleton, *, T=None, F=None, W=None,
+                 threshold: float | None = DEFAULT_THRESHOLD, joints: bool = False) -> np.ndarray:
+    """Bounded biharmonic endpoint weights, solved directly or as joint weights.
+
+    Parameters
+    ----------
+    V : (n, d) float
+    sk : Skeleton
+    T : (t, 4) int, or (f, 3) in 2D
+        The volume mesh BBW is solved on; in 2D the triangles ``F`` serve too.
+    F : (f, 3) int, optional
+        2D triangles, used when ``T`` is None.
+    W : (n, b) float, optional
+        Bone weights; with ``threshold`` each bone is solved only on the elements
+        touching ``W[:, i] > threshold`` and its own constrained vertices. Vertices
+        outside that region (and in region components holding no constraint) get the
+        projection (eq. 8); ``w_i`` is ~0 there, so STBS never reads them.
+    threshold : float or None
+        Paper §3 restriction (1e-7); None disables it.
+    joints : bool
+        False (method ``"bbw"``): one BBW function per bone with ``e = 0`` at
+        ``a_i``, ``1`` at ``b_i`` and ``t`` at every vertex on the bone (linear along
+        it). True (``"bbw-joints"``): joint weights, 1 at the joint and 0 at the other
+        joints, combined by eq. 7.
+
+    Returns
+    -------
+    E : (n, b) float64 in [0, 1]
+
+    Notes
+    -----
+    Joints without a mesh vertex on them use their nearest vertex, with a warning
+    giving the distance (``ON_BONE_TOL`` of the bounding-box diagonal counts as on).
+    """
+    V = _vertices_for(V, sk)
+    threshold = _threshold(threshold)
+    El = _elements(V, F, T)
+    n, b = V.shape[0], sk.n_bones
+    W = _bone_weights(W, n, b)
+    BBWSolver = _bbw_solver_class()
+    tol = ON_BONE_TOL * max(float(np.linalg.norm(np.ptp(V, axis=0))), 1e-300)
+    E = projection(V, sk)
+    restrict = W is not None and threshold is not None
+    cache: dict = {}
+    used = np.unique(El)     # vertices in no element cannot carry a constraint
+    jv = _joint_vertices(V, used, sk, tol, range(sk.n_joints) if joints else np.unique(sk.BE))
+    cand, ks = _unique_joint_vertices(jv)
+    if joints and not restrict:
+        # One solve for all joints on the whole mesh, then eq. 7.
+        bidx = cand
+        bc = np.zeros((len(bidx), sk.n_joints))
+        bc[np.arange(len(bidx)), ks] = 1.0
+        verts, X = _solve_region(BBWSolver, V, El, None, bidx, bc, cache)
+        J = np.zeros((n, sk.n_joints))
+        J[verts] = X
+        E[verts] = joints_to_endpoint(J[verts], sk)
+        return E
+    for i in range(b):
+        a, e = (int(k) for k in sk.BE[i])
+        if joints:
+            bidx, vals = cand, np.zeros((len(cand), 2))
+            vals[ks == a, 0] = 1.0
+            vals[ks == e, 1] = 1.0
+        else:
+            on, t = _on_bone(V, used, sk, i, tol)
+            val = dict(zip(on.tolist(), t.tolist(), strict=True))
+            val[jv[a]] = 0.0
+            val[jv[e]] = 1.0
+            bidx = np.fromiter(val.keys(), dtype=np.int64)
+            vals = np.fromiter(val.values(), dtype=float)[:, None]
+        mask = None
+        if restrict:
+            own = np.array([jv[a], jv[e]]) if joints else bidx
+            mask = _support_elements(El, _column(W, i), threshold, extra=own)
+            if joints:
+                inside = np.zeros(n, dtype=bool)
+                inside[np.unique(El[mask])] = True
+                keep = inside[bidx]
+                bidx, vals = bidx[keep], vals[keep]
+        verts, X = _solve_region(BBWSolver, V, El, mask, bidx, vals, cache)
+        E[verts, i] = X[:, 0] if not joints else 0.5 * ((1.0 - X[:, 0]) + X[:, 1])
+    return np.clip(E, 0.0, 1.0)
+
+
+def _unique_joint_vertices(jv: dict[int, int]) -> tuple[np.ndarray, np.ndarray]:
+    """Constrained vertices and their joints; two joints on one vertex is an error."""
+    seen: dict[int, int] = {}
+    for k, v in jv.items():
+        if v in seen:
+            raise ValueError(f"joints {seen[v]} and {k} map to the same mesh vertex {v}; "
+                             "BBW joint weights need a vertex per joint (refine the mesh)")
+        seen[v] = k
+    bidx = np.fromiter(jv.values(), dtype=np.int64)
+    ks = np.fromiter(jv.keys(), dtype=np.int64)
+    return bidx, ks
+
+
+# -- entry point -------------------------------------------------------------------------
+def endpoint_weights(V, sk: Skeleton, method: EndpointMethod = "projection", *,
+                     W=None, F=None, T=None, threshold: float | None = DEFAULT_THRESHOLD,
+                     alpha: float | None = None, normalize: IdwNormalization | None = None,
+                     backend: _raycast.RayBackend | None = None) -> np.ndarray:
     """Endpoint weights E (n, b) by one of the paper's methods.
 
     Parameters
     ----------
     V : (n, d) float
     sk : Skeleton
-    method : {"projection"}
-        ``"projection"``: eq. 8. (The shape-aware methods of §2.3 arrive with the
-        weights solvers.)
-    W, F, T : optional
-        Bone weights and mesh elements, used by the shape-aware methods.
+    method : {"projection", "idw", "heat", "bbw", "bbw-joints"}
+        ``"projection"``: eq. 8. ``"idw"``: eq. 9 joint weights -> eq. 7 (see
+        :func:`idw`). ``"heat"``: bone heat with joints as points -> eq. 7, on the
+        surface ``F`` (3D) or the triangles ``F`` (2D) (see :func:`heat_endpoint`).
+        ``"bbw"``: BBW for e_i directly, 0 at ``a_i``, 1 at ``b_i``, linear along the
+        bone; ``"bbw-joints"``: BBW joint weights -> eq. 7; both on ``T`` (3D) or
+        ``F``/``T`` (2D) (see :func:`bbw_endpoint`).
+    W : (n, b) float, optional
+        Bone weights: the solved methods are restricted to ``W[:, i] > threshold``.
+    F : (f, 3) int, optional
+        Triangles: the surface for ``"heat"`` in 3D, the shape in 2D.
+    T : (t, 4) int, optional
+        Tetrahedra for ``"bbw"``/``"bbw-joints"`` in 3D.
+    threshold : float or None
+        Restriction threshold (paper §3: 1e-7); None solves on the whole mesh.
+    alpha : float, optional
+        ``"idw"`` only: exponent >= 2 (default 2).
+    normalize : {"bone", "all"}, optional
+        ``"idw"`` only: normalise joint weights over the bone's two joints (default)
+        or over all joints.
+    backend : {"auto", "embree", "numpy"}, optional
+        ``"heat"`` only: visibility ray casting (default ``"auto"``).
+
+    Returns
+    -------
+    E : (n, b) float64
+        In [0, 1].
+
+    Raises
+    ------
+    ValueError
+        For an unknown method, an option given to a method that does not use it, or
+        a missing mesh (the message says which one the method needs).
     """
     _checks.choice("method", method, ENDPOINT_METHODS)
-    return projection(V, sk)
+    for name, value, owner in (("alpha", alpha, "idw"), ("normalize", normalize, "idw"),
+                               ("backend", backend, "heat")):
+        if value is not None and method != owner:
+            raise ValueError(f"{name} applies to method={owner!r} only, got {name}={value!r} "
+                             f"with method={method!r}")
+    threshold = _threshold(threshold)
+    if method == "projection":
+        return projection(V, sk)
+    if method == "idw":
+        return idw(V, sk, alpha=2.0 if alpha is None else alpha,
+                   normalize="bone" if normalize is None else normalize)
+    if method == "heat":
+        if F is None:
+            raise ValueError("method='heat' needs triangles F: the surface in 3D "
+                             "(visibility and diffusion live on it), the shape in 2D")
+        return heat_endpoint(V, F, sk, W=W, threshold=threshold,
+                             backend="auto" if backend is None else backend)
+    return bbw_endpoint(V, sk, T=T, F=F, W=W, threshold=threshold,
+                        joints=method == "bbw-joints")

@@ -1,0 +1,27 @@
+"""Meshing with the skeleton built in (DESIGN §4: skeleton samples are mesh vertices).
+
+=========================  ====================================================
+function                   what it does
+=========================  ====================================================
+:func:`triangulate_2d`     2D outline -> quality triangle mesh, bones as
+                           constrained segments (Triangle, or builtin Ruppert)
+:func:`tetrahedralize`     closed surface -> tetrahedral mesh with joints and
+                           bone samples as vertices (TetGen, or builtin lattice)
+:func:`check_surface`      closed, manifold, oriented, not self-intersecting?
+:func:`outline_from_image` image mask -> polygons (marching squares)
+:func:`boundary_loops`     a 2D mesh's boundary loops
+:func:`read_polygons`      Triangle ``.poly`` file -> polygons
+=========================  ====================================================
+
+The optional engines are imported on first use only; see ``docs/meshing.md`` for
+their licences and the extras that install them.
+"""
+
+from .outline import boundary_loops, outline_from_image, read_polygons
+from .result import TetMesh, TriMesh
+from .surface import check_surface
+from .tetrahedra import ENGINES_3D, tetrahedralize
+from .triangulate import ENGINES_2D, triangulate_2d
+
+__all__ = ["TriMesh", "TetMesh", "triangulate_2d", "tetrahedralize", "check_surface",
+           "outline_from_image", "boundary_loops", "read_polygons", "ENGINES_2D", "ENGINES_3D"]

@@ -1,0 +1,882 @@
+"""Bounded biharmonic weights (Jacobson, Baran, Popovic & Sorkine, SIGGRAPH 2011).
+
+Each weight function ``w`` minimises the discrete Laplacian energy
+
+    1/2 w^T Q w,    Q = L M^-1 L      (L: cotangent Laplacian, M: lumped mass)
+
+subject to the boundary conditions ``w[b] = bc`` and the bounds ``0 <= w <= 1``; with
+``partition_of_unity=True`` all functions are solved together under ``sum_j w_j = 1``.
+
+The solver (see ``docs/bbw.md`` for the derivation and measurements)
+--------------------------------------------------------------------
+With ``U`` the unknown vertices, ``K = Q[U, U]`` and ``c = Q[U, b] bc``, the KKT
+conditions say ``K x + c = mu`` with multipliers ``mu`` that are non-zero only where a
+bound is active -- and for the biharmonic obstacle problem only on a thin band at the
+edge of the region where ``w = 0`` (inside that region ``K x + c = 0`` already). So
+
+    x = x_u + K^-1 E_S sigma,      x_u = -K^-1 c    (the unconstrained solution)
+
+where ``S`` is the small *working set* of constrained vertices. The method is a dual
+active-set (Schur complement) method on ``S``:
+
+1. factor ``K`` **once** (sparse Cholesky, :mod:`._cholesky`) for all weight functions
+   and all iterations, and warm-start every function from ``x_u``;
+2. add the vertices where the bounds are violated most (local maxima of the
+   violation over the 1-ring, in batches) to ``S``; their columns of ``K^-1`` come
+   from one multi-right-hand-side solve shared by all functions;
+3. solve the dense Schur complement system ``(K^-1)[S, S] sigma = target - x_u[S]``
+   with a Cholesky factor that grows by block updates;
+4. drop constraints whose multipliers have the wrong sign; recompute ``x`` with one
+   solve; repeat until no bound is violated by more than ``tol / 4``.
+
+The result is checked against the KKT conditions of the original QP on every vertex
+(the *natural residual* ``max |x - clip(x - (K x + c) / diag K, 0, 1)|``, in weight
+units); a function that misses ``tol`` is finished by a primal active-set
+(semismooth Newton) polish with sparse factorizations of the free-variable system.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import time
+import warnings
+from dataclasses import dataclass, field
+from typing import Literal
+
+import numpy as np
+import scipy.linalg as sla
+import scipy.sparse as sp
+from scipy.sparse.csgraph import connected_components
+
+from .. import _checks
+from ..skeleton import Skeleton
+from ._cholesky import Factor
+from .laplacian import cotmatrix, massmatrix
+
+__all__ = ["BBWSolver", "BBWReport", "BBWConvergenceWarning", "bbw", "bone_weights",
+           "BONE_METHODS"]
+
+#: Methods of :func:`bone_weights`.
+BONE_METHODS: tuple[str, ...] = ("bbw",)
+
+_BATCH = 256          # constraints added per function and round, at most
+_SOLVE_CHUNK = 512    # right-hand sides per sparse solve call (bounds memory)
+_CACHE_BYTES = 256 * 2**20   # dense K^-1 block kept on constrained vertices (all functions)
+_POLISH_ITER = 50     # primal active-set iterations of the fallback polish
+
+
+class BBWConvergenceWarning(UserWarning):
+    """A weight function did not reach the requested KKT tolerance."""
+
+
+@dataclass
+class BBWReport:
+    """Convergence of the last :meth:`BBWSolver.solve`, one entry per weight function.
+
+    Attributes
+    ----------
+    iterations : (m,) int
+        Rounds of the dual active-set method (plus polish iterations, if any).
+    kkt_residual : (m,) float
+        Final natural KKT residual of the QP, in weight units (see module doc).
+    n_lower, n_upper : (m,) int
+        Unknown vertices where the weight sits at 0 or at 1 (the active set).
+    n_constraints : (m,) int
+        Size of the final working set S (vertices with a non-zero bound multiplier).
+    n_polish : (m,) int
+        Primal active-set iterations of the fallback polish (0 when not needed).
+    converged : (m,) bool
+        ``kkt_residual <= tol``.
+    partition_of_unity : bool
+    tol : float
+    backend : str
+        Sparse Cholesky backend.
+    n_solves : int
+        Right-hand sides solved with the shared factor (all functions together).
+    seconds : dict
+        Wall time of the phases: ``"factor"``, ``"solve"``, ``"total"``.
+    """
+
+    iterations: np.ndarray
+    kkt_residual: np.ndarray
+    n_lower: np.ndarray
+    n_upper: np.ndarray
+    n_constraints: np.ndarray
+    n_polish: np.ndarray
+    converged: np.ndarray
+    partition_of_unity: bool
+    tol: float
+    backend: str
+    n_solves: int = 0
+    seconds: dict = field(default_factory=dict)
+
+    @property
+    def all_converged(self) -> bool:
+        return bool(np.all(self.converged))
+
+    def __str__(self) -> str:
+        lines = [f"BBW: {self.iterations.size} functions, backend {self.backend}, "
+                 f"tol {self.tol:g}, partition of unity {self.partition_of_unity}, "
+                 f"{self.n_solves} solves, "
+                 + ", ".join(f"{k} {v:.3f}s" for k, v in self.seconds.items()),
+                 " fn  iters  polish  |S|  at0  at1  kkt_residual  converged"]
+        for j in range(self.iterations.size):
+            lines.append(f"{j:3d}  {self.iterations[j]:5d}  {self.n_polish[j]:6d}  "
+                         f"{self.n_constraints[j]:4d}  {self.n_lower[j]:4d}  "
+                         f"{self.n_upper[j]:4d}  {self.kkt_residual[j]:12.3e}  "
+                         f"{bool(self.converged[j])}")
+        return "\n".join(lines)
+
+
+# --------------------------------------------------------------------------------------
+# dense SPD matrix with a growing Cholesky factor (the Schur complement on S)
+# --------------------------------------------------------------------------------------
+class _Schur:
+    """The dense SPD system on the working set, ``H = (K^-1)[S, S]``, with a growing factor.
+
+    Slots are appended by block Cholesky updates. A dropped constraint keeps its slot
+    ("dead") and is eliminated in :meth:`solve` through a small Schur complement, so a
+    drop costs no refactorization; a dead slot can be revived, and the factor is
+    compacted only when many slots are dead. ``meta`` holds per-slot arrays (vertex,
+    bound, function) for the caller.
+    """
+
+    def __init__(self, **meta: np.dtype):
+        self._Hbuf = self.H = np.zeros((0, 0))
+        self.R = np.zeros((0, 0))
+        self.alive = np.zeros(0, dtype=bool)
+        self.meta = {k: np.zeros(0, dtype=dt) for k, dt in meta.items()}
+        self._dead = None
+
+    @property
+    def size(self) -> int:
+        return self.H.shape[0]
+
+    def get(self, key: str) -> np.ndarray:
+        """Per-slot values of the live constraints."""
+        return self.meta[key][self.alive]
+
+    def append(self, H12: np.ndarray, H22: np.ndarray, **meta: np.ndarray) -> np.ndarray:
+        """Append k slots (``H12``: rows over all current slots); return which were kept.
+
+        A constraint that is (numerically) a combination of others is not added.
+        """
+        k = H22.shape[0]
+        H22 = 0.5 * (H22 + H22.T)
+        R21 = (sla.solve_triangular(self.R, H12, lower=True, check_finite=False).T if self.size
+               else np.zeros((k, 0)))
+        try:
+            R22 = np.linalg.cholesky(H22 - R21 @ R21.T)
+            ok = bool(np.all(np.diag(R22) > 1e-10 * np.sqrt(np.maximum(np.diag(H22), 1e-300))))
+        except np.linalg.LinAlgError:
+            ok = False
+        if ok:
+            self._grow(H12, H22, R21, R22)
+            keep = np.ones(k, dtype=bool)
+        else:  # rare: add one at a time, skipping dependent ones
+            keep = np.zeros(k, dtype=bool)
+            for q in range(k):
+                kept = np.flatnonzero(keep)
+                h12 = np.concatenate([H12[:, q], H22[kept, q]])
+                r = (sla.solve_triangular(self.R, h12, lower=True, check_finite=False) if self.size
+                     else np.zeros(0))
+                d = H22[q, q] - r @ r
+                if d > 1e-20 * max(H22[q, q], 1e-300):
+                    self._grow(h12[:, None], H22[q:q + 1, q:q + 1], r[None, :],
+                               np.array([[np.sqrt(d)]]))
+                    keep[q] = True
+        for key in self.meta:
+            self.meta[key] = np.concatenate([self.meta[key], meta[key][keep]])
+        self.alive = np.concatenate([self.alive, np.ones(int(keep.sum()), dtype=bool)])
+        self._dead = None
+        return keep
+
+    def _grow(self, H12, H22, R21, R22):
+        s, k = self.size, H22.shape[0]
+        if s + k > self._Hbuf.shape[0]:           # H lives in a geometrically grown buffer
+            cap = max(s + k, 2 * self._Hbuf.shape[0], 64)
+            Hb = np.empty((cap, cap))
+            Hb[:s, :s] = self.H
+            self._Hbuf = Hb
+        Hb = self._Hbuf
+        Hb[:s, s:s + k], Hb[s:s + k, :s], Hb[s:s + k, s:s + k] = H12, H12.T, H22
+        self.H = Hb[:s + k, :s + k]
+        # R stays contiguous: LAPACK would copy a strided view on every solve
+        R = np.zeros((s + k, s + k))
+        R[:s, :s], R[s:, :s], R[s:, s:] = self.R, R21, R22
+        self.R = R
+
+    def revive(self, slots: np.ndarray) -> None:
+        if slots.size:
+            self.alive[slots] = True
+            self._dead = None
+
+    def drop(self, bad: np.ndarray) -> None:
+        """Kill the live constraints flagged in ``bad`` (a mask over the live ones)."""
+        self.alive[np.flatnonzero(self.alive)[bad]] = False
+        self._dead = None
+        n_dead = self.size - int(self.alive.sum())
+        if n_dead > max(32, self.size // 8):
+            keep = self.alive
+            self._Hbuf = self.H = self.H[np.ix_(keep, keep)]
+            self.R = np.linalg.cholesky(self.H) if self.H.size else np.zeros((0, 0))
+            self.meta = {k: v[keep] for k, v in self.meta.items()}
+            self.alive = np.ones(self.size, dtype=bool)
+
+    def solve(self, rhs: np.ndarray) -> np.ndarray:
+        """Solve ``H[live, live] sigma = rhs`` (dead slots eliminated by a Schur complement)."""
+        if not self.alive.any():
+            return np.zeros(0)
+        r = np.zeros(self.size)
+        r[self.alive] = rhs
+        y = sla.cho_solve((self.R, True), r, check_finite=False)
+        if self.alive.all():
+            return y
+        if self._dead is None:
+            D = np.flatnonzero(~self.alive)
+            E = np.zeros((self.size, D.size))
+            E[D, np.arange(D.size)] = 1.0
+            Y = sla.cho_solve((self.R, True), E, check_finite=False)
+            self._dead = (D, Y, sla.cho_factor(Y[D], check_finite=False))
+        D, Y, SD = self._dead
+        y = y - Y @ sla.cho_solve(SD, y[D], check_finite=False)
+        return y[self.alive]
+
+
+# --------------------------------------------------------------------------------------
+# helpers
+# --------------------------------------------------------------------------------------
+def _local_maxima(v_full: np.ndarray, adj: sp.csr_array) -> np.ndarray:
+    """Mask of vertices whose value is >= every 1-ring neighbour's (rows of adj non-empty)."""
+    nb = np.maximum.reduceat(v_full[adj.indices], adj.indptr[:-1])
+    return v_full >= nb
+
+
+def _blas_threads(threads: int | None):
+    """Limit BLAS threads while solving (threadpoolctl, when installed).
+
+    The work is many mid-sized dense and multi-right-hand-side triangular solves: on a
+    busy or small machine extra BLAS threads (numpy's and CHOLMOD's pools compete)
+    cost more than they bring, several times over on the 2-core machines we measured.
+    """
+    if threads is None:
+        return contextlib.nullcontext()
+    try:
+        from threadpoolctl import threadpool_limits
+    except ImportError:  # pragma: no cover - optional
+        return contextlib.nullcontext()
+    return threadpool_limits(limits=threads, user_api="blas")
+
+
+def _simplex_projection(Y: np.ndarray) -> np.ndarray:
+    """Project each row of Y (n, m) onto the probability simplex (sort-based, vectorised)."""
+    n, m = Y.shape
+    S = -np.sort(-Y, axis=1)
+    css = np.cumsum(S, axis=1) - 1.0
+    k = np.arange(1, m + 1)
+    cond = S - css / k > 0
+    r = m - 1 - np.argmax(cond[:, ::-1], axis=1)
+    theta = css[np.arange(n), r] / (r + 1)
+    return np.maximum(Y - theta[:, None], 0.0)
+
+
+@dataclass
+class _Prepared:
+    """Everything that depends on (mesh, b) only: shared by all solves with the same b."""
+
+    key: bytes
+    U: np.ndarray            # (n_u,) unknown vertex ids
+    K: sp.csr_array          # Q[U, U]
+    QUb: sp.csr_array        # Q[U, b_sorted]
+    b_sorted: np.ndarray
+    dK: np.ndarray
+    factor: Factor
+    factor_seconds: float
+
+
+class BBWSolver:
+    """Precomputed operators for bounded biharmonic weights on one mesh.
+
+    Parameters
+    ----------
+    V : (n, d) float
+        Vertex positions, d = 2 or 3.
+    E : (f, 3) int or (t, 4) int
+        Triangles (a 2D mesh, or a surface in 3D) or tetrahedra (3D volume).
+    backend : {"auto", "cholmod", "cholespy", "scipy"}
+        Sparse Cholesky backend (:mod:`stbs.weights._cholesky`).
+    mass : {"default", "voronoi", "barycentric"}
+        Lumped mass matrix (libigl's default: voronoi for triangles, barycentric for tets).
+    degenerate : {"raise", "skip"}
+        Zero-measure elements: an error, or left out (:mod:`stbs.weights.laplacian`).
+    blas_threads : int or None
+        BLAS threads while solving (needs ``threadpoolctl``); None leaves them alone.
+
+    Attributes
+    ----------
+    L : (n, n) sparse
+        Cotangent Laplacian (negative semi-definite).
+    M : (n, n) sparse diagonal
+        Lumped mass matrix.
+    Q : (n, n) sparse
+        Bilaplacian ``L M^-1 L``.
+    last_report : BBWReport or None
+        Convergence of the last :meth:`solve`.
+
+    Examples
+    --------
+    >>> W = BBWSolver(V, T).solve(b, bc)                       # doctest: +SKIP
+    >>> solver = BBWSolver(V, T); W = solver.solve(b, bc); print(solver.last_report)
+    ...                                                          # doctest: +SKIP
+    """
+
+    def __init__(self, V, E, *, backend: Literal["auto", "cholmod", "cholespy", "scipy"] = "auto",
+                 mass: Literal["default", "voronoi", "barycentric"] = "default",
+                 degenerate: Literal["raise", "skip"] = "raise",
+                 blas_threads: int | None = 1):
+        V = _checks.vertices(V)
+        E = _checks.index_array("E", E, ndim=2)
+        if E.shape[1] not in (3, 4) or E.shape[0] == 0:
+            raise ValueError(f"E must have shape (f, 3) (triangles) or (t, 4) (tetrahedra) "
+                             f"with at least one element, got {E.shape}")
+        _checks.choice("backend", backend, ("auto", "cholmod", "cholespy", "scipy"))
+        self.V, self.E, self.backend = V, E, backend
+        if blas_threads is not None and int(blas_threads) < 1:
+            raise ValueError(f"blas_threads must be >= 1 or None, got {blas_threads}")
+        self.blas_threads = blas_threads
+        self.n = int(V.shape[0])
+        self.L = cotmatrix(V, E, degenerate=degenerate)
+        self.M = massmatrix(V, E, mass, degenerate=degenerate)
+        m = self.M.diagonal()
+        minv = np.divide(1.0, m, out=np.zeros_like(m), where=m > 0)
+        self.Q = sp.csr_array(self.L @ sp.diags_array(minv) @ self.L)
+        self.Q.sum_duplicates()
+        A = sp.csr_array(self.L.copy())
+        A.setdiag(0)
+        A.eliminate_zeros()
+        A.data[:] = 1.0
+        self._referenced = np.zeros(self.n, dtype=bool)
+        self._referenced[E.ravel()] = True
+        # Every row needs an entry for _local_maxima; an isolated vertex points to itself.
+        self._adj = sp.csr_array(A + sp.diags_array((np.diff(A.indptr) == 0).astype(float)))
+        self._n_comp, self._comp = connected_components(A, directed=False)
+        self._prepared: _Prepared | None = None
+        self.last_report: BBWReport | None = None
+
+    # ----------------------------------------------------------------------------------
+    def _check_bc(self, b, bc, partition_of_unity: bool) -> tuple[np.ndarray, np.ndarray]:
+        b = _checks.index_array("b", b, ndim=1)
+        bc = np.asarray(bc, dtype=float) if not sp.issparse(bc) else bc.toarray()
+        if bc.ndim == 1:
+            bc = bc[:, None]
+        bc = _checks.real_array("bc", bc, ndim=2)
+        if bc.shape[0] != b.shape[0]:
+            raise ValueError(f"bc must have one row per entry of b: expected shape "
+                             f"({b.shape[0]}, m), got {bc.shape}")
+        if b.size == 0 or bc.shape[1] == 0:
+            raise ValueError(f"b and bc must constrain at least one vertex and one function, "
+                             f"got b {b.shape}, bc {bc.shape}")
+        if b.min() < 0 or b.max() >= self.n:
+            bad = int(b.min()) if b.min() < 0 else int(b.max())
+            raise ValueError(f"b must hold vertex indices in 0..{self.n - 1}, got {bad}")
+        u, cnt = np.unique(b, return_counts=True)
+        if np.any(cnt > 1):
+            raise ValueError(f"b must not repeat a vertex, got vertex {u[cnt > 1][0]} "
+                             f"{cnt.max()} times")
+        if bc.min() < -1e-12 or bc.max() > 1 + 1e-12:
+            raise ValueError(f"bc must lie in [0, 1] (the bounds of the weights), got values "
+                             f"in [{bc.min():.6g}, {bc.max():.6g}]")
+        if partition_of_unity:
+            s = bc.sum(axis=1)
+            if np.any(np.abs(s - 1) > 1e-8):
+                i = int(np.argmax(np.abs(s - 1)))
+                raise ValueError(f"partition_of_unity needs rows of bc summing to 1, but row "
+                                 f"{i} (vertex {b[i]}) sums to {s[i]:.6g}")
+        order = np.argsort(b)
+        return b[order], np.clip(bc[order], 0.0, 1.0)
+
+    def _prepare(self, b: np.ndarray) -> _Prepared:
+        key = b.tobytes()
+        if self._prepared is not None and self._prepared.key == key:
+            return self._prepared
+        lone = ~self._referenced
+        lone[b] = False
+        if lone.any():
+            i = int(np.flatnonzero(lone)[0])
+            raise ValueError(f"V: vertex {i} belongs to no element ({int(lone.sum())} such "
+                             "vertices); remove unreferenced vertices or constrain them in b")
+        hit = np.zeros(self._n_comp, dtype=bool)
+        hit[self._comp[b]] = True
+        if not hit.all():
+            c = int(np.flatnonzero(~hit)[0])
+            members = np.flatnonzero(self._comp == c)
+            raise ValueError(f"b constrains no vertex of a connected part of the mesh "
+                             f"({members.size} vertices, e.g. vertex {members[0]}): its "
+                             "weights would be undetermined; add a handle there or remove it")
+        U = np.setdiff1d(np.arange(self.n), b)
+        QU = self.Q[U]
+        K = sp.csr_array(QU[:, U])
+        QUb = sp.csr_array(QU[:, b])
+        t = time.perf_counter()
+        try:
+            factor = Factor(K, self.backend)
+        except np.linalg.LinAlgError as exc:
+            raise ValueError(f"the bilaplacian restricted to the free vertices is not positive "
+                             f"definite ({exc}); is the mesh degenerate?") from exc
+        self._prepared = _Prepared(key, U, K, QUb, b, K.diagonal(), factor,
+                                   time.perf_counter() - t)
+        return self._prepared
+
+    # ----------------------------------------------------------------------------------
+    def solve(self, b, bc, *, partition_of_unity: bool = False, tol: float = 1e-10,
+              max_iter: int = 200) -> np.ndarray:
+        """Bounded biharmonic weights for the boundary conditions ``w[b] = bc``.
+
+        Parameters
+        ----------
+        b : (k,) int
+            Constrained vertex indices (no repeats).
+        bc : (k, m) float in [0, 1]
+            Their values, one column per weight function. With
+            ``partition_of_unity=True`` each row must sum to 1.
+        partition_of_unity : bool
+            Solve all functions jointly under ``sum_j w_j = 1`` (then ``w <= 1`` is
+            implied). Without it each function is an independent QP and rows sum to 1
+            only approximately (BBW's weights "nearly" partition unity).
+        tol : float
+            KKT tolerance: the natural residual of every function, in weight units.
+        max_iter : int
+            Rounds of the active-set method per function.
+
+        Returns
+        -------
+        W : (n, m) float64
+            The raw QP solution, ``0 <= W <= 1`` exactly and ``W[b] = bc``. Convergence
+            per function is in :attr:`last_report`; a function that misses ``tol``
+            raises a :class:`BBWConvergenceWarning`.
+        """
+        tol = float(tol)
+        if not tol > 0:
+            raise ValueError(f"tol must be > 0, got {tol}")
+        if int(max_iter) < 1:
+            raise ValueError(f"max_iter must be >= 1, got {max_iter}")
+        with _blas_threads(self.blas_threads):
+            return self._solve(b, bc, bool(partition_of_unity), tol, int(max_iter))
+
+    def _solve(self, b, bc, partition_of_unity: bool, tol: float, max_iter: int) -> np.ndarray:
+        t0 = time.perf_counter()
+        b, bc = self._check_bc(b, bc, partition_of_unity)
+        was_ready = self._prepared is not None and self._prepared.key == b.tobytes()
+        P = self._prepare(b)
+        C = np.asarray(P.QUb @ bc)
+        Xu = -P.factor.solve(C)
+        run = _Run(self, P, tol, max_iter)
+        run.n_solves += C.shape[1]
+        if partition_of_unity:
+            X, rep = run.pou(Xu, C)
+        else:
+            X, rep = run.boxes(Xu, C)
+        W = np.empty((self.n, bc.shape[1]))
+        W[P.b_sorted] = bc
+        W[P.U] = X
+        rep.seconds = {"factor": 0.0 if was_ready else P.factor_seconds,
+                       "solve": time.perf_counter() - t0 - (0.0 if was_ready
+                                                            else P.factor_seconds),
+                       "total": time.perf_counter() - t0}
+        rep.n_solves = run.n_solves
+        self.last_report = rep
+        if not rep.all_converged:
+            bad = np.flatnonzero(~rep.converged)
+            warnings.warn(f"BBW: {bad.size} of {bc.shape[1]} weight functions (first: "
+                          f"{bad[0]}) missed the KKT tolerance {tol:g}; worst residual "
+                          f"{rep.kkt_residual.max():.3g} (see solver.last_report)",
+                          BBWConvergenceWarning, stacklevel=3)
+        return W
+
+
+class _Green:
+    """Entries of ``K^-1`` between constrained vertices, shared by all weight functions.
+
+    A vertex joins when its column ``K^-1 e_i`` is solved; the rows of that column at
+    the vertices already here complete the dense symmetric block. Functions whose
+    working sets overlap (neighbouring bones), and constraints dropped and added
+    again, then cost no further solve. ``cap`` bounds the memory (vertices).
+    """
+
+    def __init__(self, nu: int, cap: int | None):
+        self.pos = np.full(nu, -1, dtype=np.int64)
+        self.verts = np.zeros(0, dtype=np.int64)
+        self.G = np.zeros((0, 0))
+        self.cap = cap
+
+    @property
+    def size(self) -> int:
+        return self.verts.size
+
+    def room(self) -> float:
+        return np.inf if self.cap is None else self.cap - self.size
+
+    def has(self, v: np.ndarray) -> bool:
+        return bool(np.all(self.pos[v] >= 0))
+
+    def add(self, cv: np.ndarray, Y: np.ndarray) -> None:
+        """Add vertices ``cv`` (not yet here) given their full columns ``Y`` (nu, k)."""
+        s, k = self.size, cv.size
+        if s + k > self.G.shape[0]:
+            cap = max(s + k, int(1.5 * self.G.shape[0]), 64)
+            if self.cap is not None:
+                cap = min(cap, max(self.cap, s + k))
+            G = np.empty((cap, cap))
+            G[:s, :s] = self.G[:s, :s]
+            self.G = G
+        self.G[:s, s:s + k] = Y[self.verts]
+        self.G[s:s + k, :s] = self.G[:s, s:s + k].T
+        B = Y[cv]
+        self.G[s:s + k, s:s + k] = 0.5 * (B + B.T)
+        self.pos[cv] = np.arange(s, s + k)
+        self.verts = np.concatenate([self.verts, cv])
+
+    def block(self, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
+        return self.G[np.ix_(self.pos[rows], self.pos[cols])]
+
+
+class _Run:
+    """One call of :meth:`BBWSolver.solve`: the dual active-set iterations."""
+
+    def __init__(self, solver: BBWSolver, P: _Prepared, tol: float, max_iter: int):
+        self.s, self.P, self.tol, self.max_iter = solver, P, tol, max_iter
+        self.delta = 0.25 * tol
+        self.n_solves = 0
+        self.nu = P.U.size
+
+    def _solve_unit(self, verts: np.ndarray):
+        """Yield (chunk vertices, K^-1 E_chunk) for unit right-hand sides at ``verts``."""
+        for i in range(0, verts.size, _SOLVE_CHUNK):
+            cv = verts[i:i + _SOLVE_CHUNK]
+            E = np.zeros((self.nu, cv.size))
+            E[cv, np.arange(cv.size)] = 1.0
+            self.n_solves += cv.size
+            yield cv, self.P.factor.solve(E)
+
+    def _candidates(self, v: np.ndarray, excluded: np.ndarray) -> np.ndarray:
+        """Vertices (local ids) to constrain next: violated local maxima, largest first."""
+        v = np.where(excluded, 0.0, v)
+        viol = v > self.delta
+        if not viol.any():
+            return np.zeros(0, dtype=np.int64)
+        v_full = np.full(self.s.n, -np.inf)
+        v_full[self.P.U] = v
+        peak = _local_maxima(v_full, self.s._adj)[self.P.U]
+        cand = np.flatnonzero(viol & peak)
+        return cand[np.argsort(-v[cand], kind="stable")][:_BATCH]
+
+    def _residual_boxes(self, x: np.ndarray, c: np.ndarray) -> float:
+        z = self.P.K @ x + c
+        return float(np.max(np.abs(x - np.clip(x - z / self.P.dK, 0.0, 1.0)), initial=0.0))
+
+    # ---- independent functions, 0 <= w <= 1 --------------------------------------------
+    def boxes(self, Xu: np.ndarray, C: np.ndarray):
+        nu, m = Xu.shape
+        X = Xu.copy()
+        schur = [_Schur(v=np.int64, upper=bool) for _ in range(m)]   # working set S_j
+        green = _Green(nu, max(64, int(np.sqrt(_CACHE_BYTES / 8))))
+        iters = np.zeros(m, dtype=np.int64)
+        done = np.zeros(m, dtype=bool)
+        slot = np.full(nu, -1, dtype=np.int64)
+        for _ in range(self.max_iter):
+            new, revive = {}, {}
+            for j in np.flatnonzero(~done):
+                x, sj = X[:, j], schur[j]
+                excl = np.zeros(nu, dtype=bool)
+                excl[sj.get("v")] = True
+                cand = self._candidates(np.maximum(-x, x - 1.0), excl)
+                if cand.size == 0:
+                    done[j] = True
+                    continue
+                iters[j] += 1
+                # a dropped constraint that is violated again gets its slot back
+                slot[sj.meta["v"]] = np.arange(sj.size)
+                old = slot[cand] >= 0
+                revive[j] = slot[cand[old]]
+                sj.meta["upper"][revive[j]] = x[cand[old]] > 1.0
+                slot[sj.meta["v"]] = -1
+                new[j] = cand[~old]
+            if not new:
+                break
+            blocks = self._columns(green, {j: c for j, c in new.items() if c.size},
+                                   {j: schur[j].meta["v"] for j in new})
+            rhs = np.zeros((nu, len(new)))
+            for col, (j, cand) in enumerate(new.items()):
+                sj = schur[j]
+                sj.revive(revive[j])
+                if cand.size:
+                    A, s = blocks[j], sj.size
+                    sj.append(A[:s], A[s:], v=cand, upper=X[cand, j] > 1.0)
+                sig = self._multipliers(sj, Xu[:, j])
+                rhs[sj.get("v"), col] = sig
+            Y = self.P.factor.solve(rhs)
+            self.n_solves += rhs.shape[1]
+            for col, j in enumerate(new):
+                X[:, j] = Xu[:, j] + Y[:, col]
+        return self._finish_boxes(X, C, schur, iters)
+
+    def _columns(self, green: _Green, new: dict, slots: dict) -> dict:
+        """For each function j: ``K^-1[slots_j + new_j, new_j]``, solving only what is missing.
+
+        The new vertices of all functions are solved together (one multi-RHS solve);
+        the cache serves repeats across functions and rounds.
+        """
+        if not new:
+            return {}
+        need = np.unique(np.concatenate(list(new.values())))
+        fresh = need[green.pos[need] < 0]
+        cache_all = fresh.size <= green.room()
+        direct = {j for j, cand in new.items()
+                  if not green.has(slots[j]) or (not cache_all and not green.has(cand))}
+        if direct:           # the cache is full: these functions take rows of fresh columns
+            fresh = np.unique(np.concatenate([fresh] + [new[j] for j in direct]))
+        rows = {j: np.concatenate([slots[j], new[j]]) for j in direct}
+        blocks = {j: np.empty((rows[j].size, new[j].size)) for j in direct}
+        posmap = np.full(self.nu, -1, dtype=np.int64)
+        for cv, Y in self._solve_unit(fresh):
+            if cache_all:
+                out = green.pos[cv] < 0
+                green.add(cv[out], Y[:, out])
+            posmap[cv] = np.arange(cv.size)
+            for j in direct:
+                p = posmap[new[j]]
+                here = p >= 0
+                if here.any():
+                    blocks[j][:, here] = Y[np.ix_(rows[j], p[here])]
+            posmap[cv] = -1
+        for j, cand in new.items():
+            if j not in direct:
+                blocks[j] = green.block(np.concatenate([slots[j], cand]), cand)
+        return blocks
+
+    def _multipliers(self, sj: _Schur, xu: np.ndarray) -> np.ndarray:
+        """Solve for the live multipliers; drop those of the wrong sign until none is.
+
+        ``x_S = x_u[S] + H sigma`` must equal the bounds; ``sigma = (K x + c)[S]`` is
+        ``mu >= 0`` at a lower bound and ``-mu <= 0`` at an upper one.
+        """
+        while True:
+            v, upper = sj.get("v"), sj.get("upper")
+            sig = sj.solve(upper.astype(float) - xu[v])
+            mu = np.where(upper, -sig, sig) / self.P.dK[v]
+            bad = mu < -self.delta
+            if not bad.any():
+                return sig
+            sj.drop(bad)
+
+    def _finish_boxes(self, X, C, schur, iters):
+        nu, m = X.shape
+        res = np.zeros(m)
+        n_polish = np.zeros(m, dtype=np.int64)
+        for j in range(m):
+            x = np.clip(X[:, j], 0.0, 1.0)
+            x[schur[j].get("v")] = schur[j].get("upper").astype(float)
+            r = self._residual_boxes(x, C[:, j])
+            if r > self.tol:
+                x, r, n_polish[j] = self._polish(x, C[:, j])
+            X[:, j], res[j] = x, r
+        return X, BBWReport(
+            iterations=iters + n_polish, kkt_residual=res,
+            n_lower=np.sum(X <= 0.0, axis=0), n_upper=np.sum(X >= 1.0, axis=0),
+            n_constraints=np.array([int(sj.alive.sum()) for sj in schur]), n_polish=n_polish,
+            converged=res <= self.tol, partition_of_unity=False, tol=self.tol,
+            backend=self.P.factor.backend)
+
+    def _polish(self, x: np.ndarray, c: np.ndarray):
+        """Primal active-set (semismooth Newton) iterations from x; sparse factor each time."""
+        K, dK = self.P.K, self.P.dK
+        lo, hi = x <= 0.0, x >= 1.0
+        best = (x, self._residual_boxes(x, c))
+        for it in range(1, _POLISH_ITER + 1):
+            F = np.flatnonzero(~(lo | hi))
+            y = np.where(hi, 1.0, 0.0)
+            if F.size:
+                rhs = -(c + K @ y)[F]
+                y[F] = Factor(K[F][:, F], self.P.factor.backend).solve(rhs)
+            z = K @ y + c
+            yc = np.clip(y, 0.0, 1.0)
+            r = self._residual_boxes(yc, c)
+            if r < best[1]:
+                best = (yc, r)
+            if r <= self.tol:
+                return yc, r, it
+            ztol = self.delta * dK
+            new_lo = (y < 0.0) | (lo & (z >= -ztol))
+            new_hi = (y > 1.0) | (hi & (z <= ztol))
+            if np.array_equal(new_lo, lo) and np.array_equal(new_hi, hi):
+                break
+            lo, hi = new_lo, new_hi
+        return best[0], best[1], it
+
+    # ---- all functions jointly, w >= 0 and sum_j w_j = 1 --------------------------------
+    def pou(self, Xu: np.ndarray, C: np.ndarray):
+        """Dual active set with the partition-of-unity multiplier eliminated.
+
+        Stationarity ``K x_j + c_j - mu_j + lam = 0`` with ``sum_j x_j = 1`` gives
+        ``lam = mean_j mu_j``, so ``x_j = x_u,j + K^-1 (mu_j - mean_l mu_l)`` and the
+        dual system couples the functions through ``(delta_jl - 1/m) K^-1``.
+        """
+        nu, m = Xu.shape
+        X = Xu.copy()
+        green = _Green(nu, None)                  # the coupled system needs every pair
+        schur = _Schur(j=np.int64, v=np.int64)    # constraint w_j(v) = 0
+        iters = 0
+        for _ in range(self.max_iter):
+            cj, cv = schur.get("j"), schur.get("v")
+            excl = np.zeros((nu, m), dtype=bool)
+            excl[cv, cj] = True
+            full = excl.sum(axis=1) >= m - 1      # a last free function must stay free
+            new_j, new_v = [], []
+            for j in range(m):
+                cand = self._candidates(-X[:, j], excl[:, j] | full)
+                new_j.append(np.full(cand.size, j))
+                new_v.append(cand)
+            new_j, new_v = np.concatenate(new_j), np.concatenate(new_v)
+            if new_v.size == 0:
+                break
+            iters += 1
+            key_all = schur.meta["j"] * nu + schur.meta["v"]
+            key_new = new_j * nu + new_v
+            old = np.isin(key_new, key_all)
+            if old.any():
+                lookup = dict(zip(key_all.tolist(), range(key_all.size), strict=True))
+                schur.revive(np.array([lookup[k] for k in key_new[old].tolist()]))
+            new_j, new_v = new_j[~old], new_v[~old]
+            add = np.unique(new_v)
+            add = add[green.pos[add] < 0]
+            for cv_, Y in self._solve_unit(add):
+                green.add(cv_, Y)
+            if new_v.size:
+                aj, av = schur.meta["j"], schur.meta["v"]
+                coef12 = (aj[:, None] == new_j[None, :]) - 1.0 / m
+                coef22 = (new_j[:, None] == new_j[None, :]) - 1.0 / m
+                schur.append(coef12 * green.block(av, new_v),
+                             coef22 * green.block(new_v, new_v), j=new_j, v=new_v)
+            while True:
+                cj, cv = schur.get("j"), schur.get("v")
+                mu = schur.solve(-Xu[cv, cj])
+                bad = mu / self.P.dK[cv] < -self.delta
+                if not bad.any():
+                    break
+                schur.drop(bad)
+            rhs = np.zeros((nu, m))
+            np.add.at(rhs, (cv, cj), mu)
+            rhs -= rhs.sum(axis=1, keepdims=True) / m
+            X = Xu + self.P.factor.solve(rhs)
+            self.n_solves += m
+        cons_j, cons_v = schur.get("j"), schur.get("v")
+        X = np.maximum(X, 0.0)
+        X[cons_v, cons_j] = 0.0
+        X /= X.sum(axis=1, keepdims=True)
+        Z = self.P.K @ X + C
+        R = np.abs(X - _simplex_projection(X - Z / self.P.dK[:, None]))
+        res = R.max(axis=0, initial=0.0)
+        return X, BBWReport(
+            iterations=np.full(m, iters), kkt_residual=res,
+            n_lower=np.sum(X <= 0.0, axis=0), n_upper=np.sum(X >= 1.0, axis=0),
+            n_constraints=np.bincount(cons_j, minlength=m), n_polish=np.zeros(m, np.int64),
+            converged=res <= self.tol, partition_of_unity=True, tol=self.tol,
+            backend=self.P.factor.backend)
+
+
+# --------------------------------------------------------------------------------------
+def bbw(V, E, b, bc, *, partition_of_unity: bool = False, tol: float = 1e-10,
+        max_iter: int = 200, backend: Literal["auto", "cholmod", "cholespy", "scipy"] = "auto"
+        ) -> np.ndarray:
+    """One-shot bounded biharmonic weights: ``BBWSolver(V, E).solve(b, bc, ...)``.
+
+    Parameters
+    ----------
+    V : (n, d) float
+    E : (f, 3) or (t, 4) int
+    b : (k,) int
+    bc : (k, m) float
+    partition_of_unity, tol, max_iter, backend
+        See :class:`BBWSolver` and :meth:`BBWSolver.solve`.
+
+    Returns
+    -------
+    W : (n, m) float64
+    """
+    return BBWSolver(V, E, backend=backend).solve(
+        b, bc, partition_of_unity=partition_of_unity, tol=tol, max_iter=max_iter)
+
+
+def bone_weights(V, sk: Skeleton, method: Literal["bbw"] = "bbw", *, F=None, T=None,
+                 partition_of_unity: bool = False, samples: int | None = None,
+                 tol: float = 1e-10) -> np.ndarray:
+    """Bone weights W (n, b) for a skeleton, rows summing to 1 (DESIGN §4).
+
+    Parameters
+    ----------
+    V : (n, d) float
+        Rest vertex positions, d = ``sk.dim``.
+    sk : Skeleton
+    method : {"bbw"}
+        Bounded biharmonic weights on a triangle mesh (2D) or tetrahedral mesh (3D).
+    F : (f, 3) int, optional
+        Triangles; required in 2D.
+    T : (t, 4) int, optional
+        Tetrahedra; required in 3D for ``"bbw"``.
+    partition_of_unity : bool
+        Solve with ``sum_i w_i = 1`` as a constraint (slower); otherwise the
+        independent solutions are normalised afterwards, as in the BBW paper.
+    samples : int, optional
+        Samples per bone for meshes without bone vertices (see
+        :func:`stbs.weights.boundary.boundary_conditions`).
+    tol : float
+        KKT tolerance of the QP.
+
+    Returns
+    -------
+    W : (n, b) float64
+        ``W >= 0``, rows sum to 1, ``W[:, i] = 1`` on the vertices lying on bone i only.
+
+    Raises
+    ------
+    ValueError
+        For mismatched dimensions, missing elements (naming the one needed), a bone
+        no vertex can be attached to, or a vertex that all weights leave at 0.
+    """
+    from .boundary import boundary_conditions
+
+    _checks.choice("method", method, BONE_METHODS)
+    if not isinstance(sk, Skeleton):
+        raise TypeError(f"sk must be a stbs.Skeleton, got {type(sk).__name__}")
+    V = _checks.vertices(V)
+    if V.shape[1] != sk.dim:
+        raise ValueError(f"V must have shape ({V.shape[0]}, {sk.dim}) to match the {sk.dim}D "
+                         f"skeleton, got {V.shape}")
+    if sk.dim == 2:
+        if T is not None:
+            raise ValueError("T (tetrahedra) was given for a 2D mesh; 2D BBW needs triangles F")
+        if F is None:
+            raise ValueError("method='bbw' in 2D needs triangles F (f, 3), got F=None")
+        E = _checks.index_array("F", F, ndim=2, shape=(None, 3))
+    else:
+        if T is None:
+            raise ValueError("method='bbw' in 3D needs a tetrahedral mesh T (t, 4) of the "
+                             "volume, got T=None" + (" (F alone is a surface: tetrahedralise "
+                                                     "it first)" if F is not None else ""))
+        E = _checks.index_array("T", T, ndim=2, shape=(None, 4))
+    if E.size and (E.min() < 0 or E.max() >= V.shape[0]):
+        name = "F" if E.shape[1] == 3 else "T"
+        bad = int(E.min()) if E.min() < 0 else int(E.max())
+        raise ValueError(f"{name} must hold vertex indices in 0..{V.shape[0] - 1}, got {bad}")
+    b, bc = boundary_conditions(V, sk, F=E if E.shape[1] == 3 else None,
+                                T=E if E.shape[1] == 4 else None, samples=samples)
+    solver = BBWSolver(V, E)
+    W = solver.solve(b, bc, partition_of_unity=partition_of_unity, tol=tol)
+    s = W.sum(axis=1)
+    if np.any(s <= 1e-12):
+        i = int(np.argmin(s))
+        raise ValueError(f"BBW left vertex {i} with all weights 0; solve with "
+                         "partition_of_unity=True or add bone samples near it")
+    if not partition_of_unity:
+        W = W / s[:, None]
+    return W
