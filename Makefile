@@ -5,7 +5,7 @@ BIN := $(VENV)/bin
 PIP := $(BIN)/python -m pip --disable-pip-version-check -q
 DEMO_OUT ?= demo-out
 
-.PHONY: demo test lint bench install install-test clean
+.PHONY: demo test lint bench bench-bbw install install-test install-cholmod clean
 
 $(BIN)/python:
 	$(PY) -m venv $(VENV)
@@ -16,7 +16,7 @@ $(VENV)/.stamp-install: pyproject.toml | $(BIN)/python
 	@touch $@
 
 $(VENV)/.stamp-test: pyproject.toml | $(BIN)/python
-	$(PIP) install -e ".[test,bench,embree,triangle,tetgen]"
+	$(PIP) install -e ".[test,bench,embree,triangle,tetgen,weights]"
 	@touch $@
 
 install: $(VENV)/.stamp-install
@@ -37,6 +37,16 @@ bench: install-test
 	  apt-get update -qq && apt-get install -y -qq libeigen3-dev; } || \
 	  echo "note: no Eigen headers; the igl-dqs peer will be skipped"
 	$(BIN)/stbs bench
+
+# Optional fastest Cholesky: CHOLMOD built against Debian's SuiteSparse (bookworm has
+# SuiteSparse 5.12; scikit-sparse 0.5 needs SuiteSparse 7).
+install-cholmod: install-test
+	command -v apt-get >/dev/null && apt-get update -qq && \
+	  apt-get install -y -qq libsuitesparse-dev libopenblas0-pthread
+	$(PIP) install "scikit-sparse>=0.4.12,<0.5"
+
+bench-bbw: install-test
+	$(BIN)/python benchmarks/bbw_vs_igl.py
 
 clean:
 	rm -rf $(VENV) build dist src/*.egg-info $(DEMO_OUT) .pytest_cache .ruff_cache

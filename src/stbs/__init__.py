@@ -27,6 +27,10 @@ _EXPORTS = {
     "save_rig": "stbs.io",
     "read_pose": "stbs.posefile",
     "bone_heat": "stbs.weights",
+    "bone_weights": "stbs.weights",
+    "BBWSolver": "stbs.weights",
+    "bbw": "stbs.weights",
+    "boundary_conditions": "stbs.weights",
     "SplineFilter": "stbs.weights",
     "triangulate_2d": "stbs.meshing",
     "tetrahedralize": "stbs.meshing",
@@ -35,6 +39,7 @@ _EXPORTS = {
 
 __all__ = ["Skeleton", "Pose", "forward_kinematics", "Deformer", "deform", "METHODS",
            "endpoint_weights", "Rig", "load_rig", "save_rig", "read_pose", "bone_heat",
+           "bone_weights", "BBWSolver", "bbw", "boundary_conditions",
            "SplineFilter", "triangulate_2d", "tetrahedralize", "outline_from_image",
            "__version__"]
 
@@ -59,4 +64,12 @@ if TYPE_CHECKING:  # pragma: no cover - for type checkers and IDEs
     from .posefile import read_pose
     from .skeleton import Skeleton
     from .skinning import METHODS, Deformer, deform
-    from .weights import SplineFilter, bone_heat, endpoint_weights
+    from .weights import (
+        BBWSolver,
+        SplineFilter,
+        bbw,
+        bone_heat,
+        bone_weights,
+        boundary_conditions,
+        endpoint_weights,
+    )

@@ -152,6 +152,16 @@ def test_one_shot_and_single_function(u_case):
     np.testing.assert_allclose(w1[:, 0], W[:, 1], atol=1e-12)
 
 
+def test_primal_polish_finishes_an_interrupted_run(u_case):
+    V, F, sk, b, bc, solver, W, rep = u_case
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", BBWConvergenceWarning)
+        W2 = solver.solve(b, bc, max_iter=2)        # two dual rounds only
+    r = solver.last_report
+    assert np.all(r.n_polish > 0) and r.all_converged
+    np.testing.assert_allclose(W2, W, atol=1e-10)
+
+
 def test_missed_tolerance_warns():
     V, F, sk = u_shape()
     b, bc = boundary_conditions(V, sk, F=F)
@@ -309,3 +319,12 @@ def test_cholesky_missing_backend(monkeypatch):
         _cholesky.factorize(sp.eye(3), backend="cholespy")
     with pytest.raises(ValueError, match="backend must be one of"):
         _cholesky.factorize(sp.eye(3), backend="mkl")
+
+
+def test_every_vertex_constrained():
+    V = np.array([[0.0, 0], [1, 0], [0, 1]])
+    bc = np.array([[1.0, 0], [0, 1], [0.5, 0.5]])
+    solver = BBWSolver(V, np.array([[0, 1, 2]]))
+    W = solver.solve([2, 0, 1], bc[[2, 0, 1]])
+    np.testing.assert_array_equal(W, bc)
+    assert solver.last_report.all_converged

@@ -466,6 +466,16 @@ class BBWSolver:
     def _solve(self, b, bc, partition_of_unity: bool, tol: float, max_iter: int) -> np.ndarray:
         t0 = time.perf_counter()
         b, bc = self._check_bc(b, bc, partition_of_unity)
+        m = bc.shape[1]
+        if b.size == self.n:                    # nothing to solve for
+            W = np.empty((self.n, m))
+            W[b] = bc
+            zero = np.zeros(m, dtype=np.int64)
+            self.last_report = BBWReport(
+                zero, np.zeros(m), zero, zero, zero, zero, np.ones(m, dtype=bool),
+                partition_of_unity, tol, self.backend, 0,
+                {"factor": 0.0, "solve": 0.0, "total": time.perf_counter() - t0})
+            return W
         was_ready = self._prepared is not None and self._prepared.key == b.tobytes()
         P = self._prepare(b)
         C = np.asarray(P.QUb @ bc)
