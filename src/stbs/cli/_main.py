@@ -25,6 +25,7 @@ from typing import NoReturn
 from . import bench as _bench
 from . import deform as _deform
 from . import demo as _demo
+from . import rig as _rig
 from ._errors import CommandError
 
 __all__ = ["main", "build_parser", "CommandError"]
@@ -68,7 +69,7 @@ def _add_debug(p: argparse.ArgumentParser, *, top: bool) -> None:
                    help="show the full traceback instead of a one-line error")
 
 
-COMMANDS = (_deform, _demo, _bench)
+COMMANDS = (_deform, _rig, _demo, _bench)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -112,7 +113,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     except SystemExit as exc:  # --help, --version, usage errors
         return _code(exc)
     if args.command is None:
-        print(f"{PROG}: error: a command is required: deform, demo, bench or version "
+        print(f"{PROG}: error: a command is required: deform, rig, demo, bench or version "
               f"(see '{PROG} --help')", file=sys.stderr)
         return 2
     prog = f"{PROG} {args.command}"

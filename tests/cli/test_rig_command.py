@@ -1,0 +1,68 @@
+"""``stbs rig``: mesh + skeleton in, a complete rig out (2D bbw, 3D heat, 3D bbw)."""
+
+import numpy as np
+import pytest
+
+import stbs
+from stbs.cli import main
+
+
+def check_rig(path, n, b):
+    rig = stbs.load_rig(path)
+    assert rig.V.shape[0] == n and rig.W.shape == (n, b) and rig.E.shape == (n, b)
+    W = np.asarray(rig.W)
+    E = np.asarray(rig.E)
+    assert W.min() >= -1e-12 and np.allclose(W.sum(axis=1), 1.0, atol=1e-8)
+    assert E.min() >= -1e-12 and E.max() <= 1 + 1e-12
+    return rig
+
+
+def test_rig_2d_bbw_then_deform(shared_data, tmp_path, capsys):
+    d = shared_data / "fast_support_reduction"
+    out = tmp_path / "cant.npz"
+    assert main(["rig", str(d / "cantilever_S.obj"), str(d / "cantilever_S.tgf"),
+                 "-o", str(out)]) == 0
+    err = capsys.readouterr().err
+    assert "time per stage" in err and "bone weights (bbw)" in err
+    rig = check_rig(out, 200, 4)
+    sk = rig.skeleton
+    # bones inserted as constrained segments: vertices near the bone follow it (w ~ 1)
+    # and endpoint weights grow along each bone
+    on = np.argmin(np.linalg.norm(rig.V[:, None] - sk.C[None], axis=2), axis=0)
+    np.testing.assert_allclose(rig.E[on[sk.BE[:, 1]], np.arange(4)], 1.0, atol=0.05)
+    pose = stbs.forward_kinematics(sk, stretch=[1.5, 1, 1, 1])
+    U = stbs.deform(rig.V, sk, pose, rig.W, rig.E)
+    assert np.isfinite(U).all()
+
+
+def test_rig_3d_heat(shared_data, tmp_path):
+    d = shared_data / "libigl-tutorial-data"
+    out = tmp_path / "arm.npz"
+    assert main(["rig", str(d / "arm.obj"), str(d / "arm.tgf"), "-o", str(out),
+                 "--bone", "heat", "--endpoint", "heat"]) == 0
+    check_rig(out, 8311, 4)
+
+
+def test_rig_3d_bbw_tetrahedralized(shared_data, tmp_path):
+    out = tmp_path / "knight.npz"
+    assert main(["rig", str(shared_data / "libigl-tutorial-data" / "decimated-knight.off"),
+                 str(shared_data / "computer-graphics-kinematics" / "knight.tgf"),
+                 "-o", str(out)]) == 0
+    rig = check_rig(out, 502, 18)
+    assert rig.F is not None and rig.T is None  # the user's surface, not our tets
+
+
+@pytest.mark.parametrize("extra, match", [
+    (["-o", "x.obj"], "expected a .npz rig file"),
+    (["-o", "nofolder/x.npz"], "does not exist"),
+    (["-o", "x.npz", "--bone", "heat"], "needs a 3D triangle surface"),
+    (["-o", "x.npz", "--bone", "magic"], "invalid choice"),
+])
+def test_rig_errors_exit_2_one_line(shared_data, tmp_path, capsys, monkeypatch, extra, match):
+    monkeypatch.chdir(tmp_path)
+    d = shared_data / "fast_support_reduction"
+    code = main(["rig", str(d / "cantilever_S.obj"), str(d / "cantilever_S.tgf"), *extra])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2
+    assert len(err) == 1 and match in err[0] and "Traceback" not in err[0]
+    assert not (tmp_path / "x.npz").exists()
