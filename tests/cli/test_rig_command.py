@@ -66,3 +66,21 @@ def test_rig_errors_exit_2_one_line(shared_data, tmp_path, capsys, monkeypatch, 
     assert code == 2
     assert len(err) == 1 and match in err[0] and "Traceback" not in err[0]
     assert not (tmp_path / "x.npz").exists()
+
+
+def test_weights_recomputes_endpoint_weights_in_place(shared_data, tmp_path):
+    d = shared_data / "fast_support_reduction"
+    rig_path = tmp_path / "cant.npz"
+    assert main(["rig", str(d / "cantilever_S.obj"), str(d / "cantilever_S.tgf"),
+                 "-o", str(rig_path), "--endpoint", "projection"]) == 0
+    before = stbs.load_rig(rig_path)
+    assert main(["weights", str(rig_path), "--endpoint", "idw", "-o", str(rig_path)]) == 0
+    after = check_rig(rig_path, 200, 4)
+    np.testing.assert_array_equal(np.asarray(after.W), np.asarray(before.W))  # kept
+    np.testing.assert_allclose(after.E, stbs.endpoint_weights(before.V, before.skeleton,
+                                                              method="idw"))
+    assert after.meta["endpoint"] == "idw"
+    # recompute the bone weights too
+    out2 = tmp_path / "cant2.npz"
+    assert main(["weights", str(rig_path), "--bone", "bbw", "-o", str(out2)]) == 0
+    check_rig(out2, 200, 4)

@@ -66,71 +66,87 @@ class _Stages:
         return "\n".join(["stbs rig: time per stage", *rows, f"  {'total':<28} {total:8.2f} s"])
 
 
-def run(args: argparse.Namespace) -> int:
-    from pathlib import Path
+def compute_weights(st: _Stages, V, F, T, sk, *, bone: str, endpoint: str, tets: str,
+                    mesh_name: str):
+    """Bone and endpoint weights (n, b) of the rest mesh (V, F, T); see DESCRIPTION.
 
-    from ..io import Rig, read_mesh, read_skeleton, save_rig
+    Returns W, E and whether the rig keeps the mesh's own tetrahedra.
+    """
+    from ..io import read_mesh
     from ..meshing import tetrahedralize, triangulate_2d
     from ..weights import bone_heat, bone_weights, endpoint_weights
     from ._errors import CommandError
 
-    out = Path(args.output)
-    if out.suffix.lower() != ".npz":
-        raise CommandError(f"output {args.output!r}: expected a .npz rig file")
-    if not (out.parent if str(out.parent) else Path(".")).is_dir():
-        raise CommandError(f"output {args.output!r}: folder {str(out.parent)!r} does not exist")
-    st = _Stages()
-    mesh = st.run("read mesh", read_mesh, args.mesh)
-    V, F, T = mesh.V, mesh.F, mesh.T
-    sk = st.run("read skeleton", read_skeleton, args.skeleton, dim=V.shape[1])
     n = len(V)
-    if args.bone == "heat":
+    if bone == "heat":
         if V.shape[1] != 3 or F is None:
-            raise CommandError(f"--bone heat needs a 3D triangle surface; {args.mesh!r} is "
+            raise CommandError(f"--bone heat needs a 3D triangle surface; {mesh_name!r} is "
                                f"{V.shape[1]}D" + ("" if F is not None else " without triangles"))
         W = st.run("bone heat", bone_heat, V, F, sk)
-        Vm, Fm, Tm = V, F, None
+        Vm, Fm, Tm, Wm = V, F, None, W
     else:
         if V.shape[1] == 2:
             if F is None:
-                raise CommandError(f"{args.mesh!r}: a 2D rig needs triangles to take the "
+                raise CommandError(f"{mesh_name!r}: a 2D rig needs triangles to take the "
                                    "outline from")
             tri = st.run("triangulate (bones inside)", triangulate_2d, (V, F), sk)
             Vm, Fm, Tm = tri.V, tri.F, None
-        elif T is not None and args.tets == "auto":
+        elif T is not None and tets == "auto":
             Vm, Fm, Tm = V, F, T
-        elif args.tets != "auto":
-            tm = st.run("read tets", read_mesh, args.tets)
+        elif tets != "auto":
+            tm = st.run("read tets", read_mesh, tets)
             if tm.T is None or len(tm.V) < n or not (tm.V[:n] == V).all():
-                raise CommandError(f"--tets {args.tets!r}: expected tetrahedra whose first "
-                                   f"{n} vertices are the surface {args.mesh!r}'s, in order")
+                raise CommandError(f"--tets {tets!r}: expected tetrahedra whose first "
+                                   f"{n} vertices are the surface {mesh_name!r}'s, in order")
             Vm, Fm, Tm = tm.V, F, tm.T
         else:
             if F is None:
-                raise CommandError(f"{args.mesh!r}: a 3D rig needs a closed triangle surface")
+                raise CommandError(f"{mesh_name!r}: a 3D rig needs a closed triangle surface")
             tet = st.run("tetrahedralize (bones inside)", tetrahedralize, V, F, sk)
             Vm, Fm, Tm = tet.V, F, tet.T
         Wm = st.run("bone weights (bbw)", bone_weights, Vm, sk, method="bbw",
                     F=Fm if Tm is None else None, T=Tm)
         W = Wm[:n]
-    if args.bone == "heat":
-        Wm = W
     elem = dict(T=Tm) if Tm is not None else dict(F=Fm)
-    if args.endpoint == "heat":
+    if endpoint == "heat":
         if V.shape[1] != 3 or F is None:
             raise CommandError("--endpoint heat needs a 3D triangle surface")
         E = st.run("endpoint weights (heat)", endpoint_weights, V, sk, method="heat", W=W, F=F)
-    elif args.endpoint in ("projection", "idw"):
-        E = st.run(f"endpoint weights ({args.endpoint})", endpoint_weights, V, sk,
-                   method=args.endpoint)
+    elif endpoint in ("projection", "idw"):
+        E = st.run(f"endpoint weights ({endpoint})", endpoint_weights, V, sk, method=endpoint)
     else:
-        Em = st.run(f"endpoint weights ({args.endpoint})", endpoint_weights, Vm, sk,
-                    method=args.endpoint, W=Wm, **elem)
-        E = Em[:n]
-    rig = Rig(V=V, F=F, T=T if Tm is T else None, C=sk.C, BE=sk.BE, names=sk.names,
+        E = st.run(f"endpoint weights ({endpoint})", endpoint_weights, Vm, sk,
+                   method=endpoint, W=Wm, **elem)[:n]
+    return W, E, Tm is T and T is not None
+
+
+def check_output(path: str):
+    from pathlib import Path
+
+    from ._errors import CommandError
+
+    out = Path(path)
+    if out.suffix.lower() != ".npz":
+        raise CommandError(f"output {path!r}: expected a .npz rig file")
+    if not (out.parent if str(out.parent) else Path(".")).is_dir():
+        raise CommandError(f"output {path!r}: folder {str(out.parent)!r} does not exist")
+    return out
+
+
+def run(args: argparse.Namespace) -> int:
+    from ..io import Rig, read_mesh, read_skeleton, save_rig
+
+    out = check_output(args.output)
+    st = _Stages()
+    mesh = st.run("read mesh", read_mesh, args.mesh)
+    V, F, T = mesh.V, mesh.F, mesh.T
+    sk = st.run("read skeleton", read_skeleton, args.skeleton, dim=V.shape[1])
+    W, E, keep_T = compute_weights(st, V, F, T, sk, bone=args.bone, endpoint=args.endpoint,
+                                   tets=args.tets, mesh_name=args.mesh)
+    rig = Rig(V=V, F=F, T=T if keep_T else None, C=sk.C, BE=sk.BE, names=sk.names,
               W=W, E=E, meta={"bone": args.bone, "endpoint": args.endpoint})
     st.run("write rig", save_rig, out, rig)
     print(st.summary(), file=sys.stderr)
-    print(f"wrote {out}: {n} vertices, {sk.n_bones} bones ({args.bone} bone weights, "
+    print(f"wrote {out}: {len(V)} vertices, {sk.n_bones} bones ({args.bone} bone weights, "
           f"{args.endpoint} endpoint weights)")
     return 0

@@ -1,0 +1,65 @@
+"""``stbs weights``: recompute the weights of an existing rig (.npz)."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+from .rig import BONE, ENDPOINT
+
+NAME = "weights"
+HELP = "recompute a rig's bone and/or endpoint weights; write a .npz rig"
+EXAMPLE = "stbs weights arm.npz --endpoint heat -o arm-heat.npz"
+DESCRIPTION = """\
+Recompute the weights of a rig written by 'stbs rig' or stbs.save_rig, with the
+same methods and meshing as 'stbs rig' (see 'stbs rig --help'). --bone keep keeps
+the rig's bone weights W and recomputes only the endpoint weights E. The output is
+written atomically and may be the input file itself."""
+EPILOG = f"""examples:
+  {EXAMPLE}
+  stbs weights woody.npz --bone bbw --endpoint idw -o woody-idw.npz"""
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("rig", metavar="RIG.npz", help="rig file (.npz)")
+    p.add_argument("-o", "--output", required=True, metavar="RIG.npz", help="output rig (.npz)")
+    p.add_argument("--bone", choices=(*BONE, "keep"), default="keep",
+                   help="bone weights: bbw, heat, or keep the rig's (default: keep)")
+    p.add_argument("--endpoint", choices=ENDPOINT, default="bbw",
+                   help="endpoint weights (default: bbw)")
+    p.add_argument("--tets", default="auto", metavar="auto|FILE",
+                   help="3D bbw: tetrahedralize the surface (auto) or read tets from FILE")
+
+
+def run(args: argparse.Namespace) -> int:
+    from ..io import Rig, load_rig, save_rig
+    from ..weights import endpoint_weights
+    from .rig import _Stages, check_output, compute_weights
+
+    out = check_output(args.output)
+    st = _Stages()
+    rig = st.run("read rig", load_rig, args.rig)
+    sk = rig.skeleton
+    if args.bone == "keep":
+        W = rig.W
+        if args.endpoint in ("projection", "idw"):
+            E = st.run(f"endpoint weights ({args.endpoint})", endpoint_weights, rig.V, sk,
+                       method=args.endpoint)
+        else:
+            elem = dict(T=rig.T) if rig.T is not None else dict(F=rig.F)
+            E = st.run(f"endpoint weights ({args.endpoint})", endpoint_weights, rig.V, sk,
+                       method=args.endpoint, W=W, **elem)
+        keep_T = rig.T is not None
+    else:
+        W, E, keep_T = compute_weights(st, rig.V, rig.F, rig.T, sk, bone=args.bone,
+                                       endpoint=args.endpoint, tets=args.tets,
+                                       mesh_name=args.rig)
+    meta = dict(rig.meta or {}, endpoint=args.endpoint)
+    if args.bone != "keep":
+        meta["bone"] = args.bone
+    new = Rig(V=rig.V, F=rig.F, T=rig.T if keep_T else None, C=rig.C, BE=rig.BE,
+              names=rig.names, W=W, E=E, meta=meta)
+    st.run("write rig", save_rig, out, new)
+    print(st.summary(), file=sys.stderr)
+    print(f"wrote {out}: {len(rig.V)} vertices, {sk.n_bones} bones")
+    return 0
