@@ -108,6 +108,16 @@ def _cofactor_apply(m0, m1, m2, m3, m4, m5, m6, m7, m8, nx, ny, nz):
 
 # --------------------------------------------------------------------------- lbs
 @nb.njit(inline="always", **_JIT)
+def _store_cofactor_normal(v, m0, m1, m2, m3, m4, m5, m6, m7, m8, N, Nout):
+    """Nout[v] = the normal N[v] mapped by the blended linear part M (cofactor, unit)."""
+    a, b, c = _cofactor_apply(m0, m1, m2, m3, m4, m5, m6, m7, m8, np.float64(N[v, 0]),
+                              np.float64(N[v, 1]), np.float64(N[v, 2]))
+    Nout[v, 0] = a
+    Nout[v, 1] = b
+    Nout[v, 2] = c
+
+
+@nb.njit(inline="always", **_JIT)
 def _lbs_vertex(V, idx, w, T, out, N, Nout, want_normals, v, K):
     """p' = sum_i w_i (A_i p + t_i), one vertex v over ``K`` slots.
 
@@ -144,11 +154,7 @@ def _lbs_vertex(V, idx, w, T, out, N, Nout, want_normals, v, K):
             m6 += wj * T[b, 2]
             m7 += wj * T[b, 6]
             m8 += wj * T[b, 10]
-        a, b2, c2 = _cofactor_apply(m0, m1, m2, m3, m4, m5, m6, m7, m8, np.float64(N[v, 0]),
-                                    np.float64(N[v, 1]), np.float64(N[v, 2]))
-        Nout[v, 0] = a
-        Nout[v, 1] = b2
-        Nout[v, 2] = c2
+        _store_cofactor_normal(v, m0, m1, m2, m3, m4, m5, m6, m7, m8, N, Nout)
 
 
 @nb.njit(parallel=True, **_JIT)
@@ -352,11 +358,7 @@ def _stbs_lbs_vertex(V, idx, w, e, P, out, N, Nout, want_normals, v, K):
     out[v, 1] = oy
     out[v, 2] = oz
     if want_normals:
-        a, b2, c2 = _cofactor_apply(m0, m1, m2, m3, m4, m5, m6, m7, m8, np.float64(N[v, 0]),
-                                    np.float64(N[v, 1]), np.float64(N[v, 2]))
-        Nout[v, 0] = a
-        Nout[v, 1] = b2
-        Nout[v, 2] = c2
+        _store_cofactor_normal(v, m0, m1, m2, m3, m4, m5, m6, m7, m8, N, Nout)
 
 
 @nb.njit(parallel=True, **_JIT)
