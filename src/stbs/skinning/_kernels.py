@@ -219,6 +219,12 @@ def _rotate_normal(r0, r1, r2, r3, nx, ny, nz):
 
 
 @nb.njit(inline="always", **_JIT)
+def _flip(w, q0, q1, q2, q3, p0, p1, p2, p3):
+    """w, negated when quaternion q lies in the other hemisphere than the pivot p."""
+    return w if q0 * p0 + q1 * p1 + q2 * p2 + q3 * p3 >= 0.0 else -w
+
+
+@nb.njit(inline="always", **_JIT)
 def _dq_store(v, r0, r1, r2, r3, d0, d1, d2, d3, px, py, pz, out, N, Nout, want_normals):
     """Apply the blended dual quaternion (r, d) to p, store vertex v (and its normal)."""
     x, y, z, r0, r1, r2, r3 = _dq_apply(r0, r1, r2, r3, d0, d1, d2, d3, px, py, pz)
@@ -270,8 +276,7 @@ def _dqs_vertex(V, idx, w, Q, S, has_stretch, out, N, Nout, want_normals, v, K):
             sy += f * S[b, 1]
             sz += f * S[b, 2]
         # pivot hemisphere: flip into the side of the largest-weight bone
-        dot = Q[b, 0] * Q[b0, 0] + Q[b, 1] * Q[b0, 1] + Q[b, 2] * Q[b0, 2] + Q[b, 3] * Q[b0, 3]
-        wj = wj if dot >= 0.0 else -wj
+        wj = _flip(wj, Q[b, 0], Q[b, 1], Q[b, 2], Q[b, 3], Q[b0, 0], Q[b0, 1], Q[b0, 2], Q[b0, 3])
         r0 += wj * Q[b, 0]
         r1 += wj * Q[b, 1]
         r2 += wj * Q[b, 2]
@@ -402,12 +407,6 @@ def _stbs_dq_pair(P, b, ej, sh, ch):
 def _half_twist(P, b, ej):
     """h = phi / 2 = theta_a / 2 + e (theta_b - theta_a) / 2 for bone b."""
     return P[b, 17] + ej * P[b, 18]
-
-
-@nb.njit(inline="always", **_JIT)
-def _flip(w, q0, q1, q2, q3, p0, p1, p2, p3):
-    """w, negated when quaternion q lies in the other hemisphere than the pivot p."""
-    return w if q0 * p0 + q1 * p1 + q2 * p2 + q3 * p3 >= 0.0 else -w
 
 
 @nb.njit(inline="always", **_JIT)
