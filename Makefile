@@ -12,11 +12,11 @@ $(BIN)/python:
 
 # Stamps re-run the install when pyproject.toml changes.
 $(VENV)/.stamp-install: pyproject.toml | $(BIN)/python
-	$(PIP) install -e .
+	$(PIP) install -e ".[demo,weights,triangle]"
 	@touch $@
 
 $(VENV)/.stamp-test: pyproject.toml | $(BIN)/python
-	$(PIP) install -e ".[test,bench,embree,triangle,tetgen,weights]"
+	$(PIP) install -e ".[test,bench,embree,triangle,tetgen,weights,demo]"
 	@touch $@
 
 install: $(VENV)/.stamp-install
