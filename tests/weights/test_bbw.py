@@ -328,3 +328,69 @@ def test_every_vertex_constrained():
     W = solver.solve([2, 0, 1], bc[[2, 0, 1]])
     np.testing.assert_array_equal(W, bc)
     assert solver.last_report.all_converged
+
+
+# ---------------------------------------------------------------- parts of the mesh
+def strip_chain(bones=10):
+    """A 2D strip 10 x 1 (spacing 0.1) with a chain of bones along its middle line."""
+    nx, ny = 100, 10
+    I, J = np.meshgrid(np.arange(nx + 1), np.arange(ny + 1), indexing="ij")
+    V = np.c_[I.ravel(), J.ravel()] / 10.0
+    idx = np.arange(V.shape[0]).reshape(nx + 1, ny + 1)
+    a, b = idx[:-1, :-1].ravel(), idx[1:, :-1].ravel()
+    c, d = idx[1:, 1:].ravel(), idx[:-1, 1:].ravel()
+    F = np.r_[np.c_[a, b, c], np.c_[a, c, d]]
+    x = np.linspace(0.5, 9.5, bones + 1)
+    C = np.c_[x, np.full_like(x, 0.5)]
+    BE = np.c_[np.arange(bones), np.arange(1, bones + 1)]
+    return V, F, stbs.Skeleton(C, BE)
+
+
+def test_parts_give_the_whole_mesh_answer(monkeypatch):
+    import importlib
+
+    mod = importlib.import_module("stbs.weights.bbw")
+
+    V, F, sk = strip_chain(10)
+    b, bc = boundary_conditions(V, sk, F=F)
+    whole = BBWSolver(V, F)
+    W0 = whole.solve(b, bc, restrict=False)
+    monkeypatch.setattr(mod, "_REGION_MAX", 0.5)      # each part is about 0.35 here
+    calls = []
+    orig = BBWSolver._solve_in_region
+    monkeypatch.setattr(BBWSolver, "_solve_in_region",
+                        lambda self, *a: calls.append(1) or orig(self, *a))
+    seen = []
+    solver = BBWSolver(V, F)
+    W = solver.solve(b, bc, progress=lambda done, total: seen.append((done, total)))
+    assert len(calls) >= 6                  # the inner bones' parts are small
+    np.testing.assert_allclose(W, W0, atol=1e-7)
+    assert solver.last_report.all_converged
+    assert kkt_box(solver.Q, W, b, 1e-8) is None
+    assert seen[-1] == (10, 10) and [d for d, _ in seen] == sorted(d for d, _ in seen)
+    # a part far too small fails the whole mesh's KKT check and is grown until it holds
+    grows = []
+    orig_grow = BBWSolver._grow
+    monkeypatch.setattr(mod, "_MARGIN_RINGS", 0)
+    monkeypatch.setattr(BBWSolver, "_grow",
+                        lambda self, *a: grows.append(1) or orig_grow(self, *a))
+    orig_regions = BBWSolver._regions
+
+    def own_cell_only(self, P, bc):
+        masks = orig_regions(self, P, bc)
+        lab = self._labU
+        return [None if mk is None else (lab == j) for j, mk in enumerate(masks)]
+
+    monkeypatch.setattr(BBWSolver, "_regions", own_cell_only)
+    W2 = BBWSolver(V, F).solve(b, bc)
+    assert grows
+    np.testing.assert_allclose(W2, W0, atol=1e-7)
+
+
+def test_progress_must_be_callable(u_case):
+    V, F, sk, b, bc, solver, W, rep = u_case
+    with pytest.raises(TypeError, match="progress must be callable"):
+        solver.solve(b, bc, progress=3)
+    seen = []
+    solver.solve(b, bc, partition_of_unity=True, progress=lambda d, t: seen.append((d, t)))
+    assert seen == [(3, 3)]

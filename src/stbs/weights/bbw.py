@@ -40,6 +40,7 @@ from __future__ import annotations
 import contextlib
 import time
 import warnings
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Literal
 
@@ -63,6 +64,10 @@ _BATCH = 256          # constraints added per function and round, at most
 _SOLVE_CHUNK = 512    # right-hand sides per sparse solve call (bounds memory)
 _CACHE_BYTES = 256 * 2**20   # dense K^-1 block kept on constrained vertices (all functions)
 _POLISH_ITER = 50     # primal active-set iterations of the fallback polish
+_REGION_MAX = 0.2     # a function whose part exceeds this share of the mesh uses the whole
+_MARGIN_RINGS = 3     # rings added around a function's cells
+_GROW_RINGS = 4       # rings added around vertices where the KKT check failed
+_GROW_MAX = 4         # times a part is grown before the function is solved on the whole
 
 
 class BBWConvergenceWarning(UserWarning):
@@ -290,8 +295,22 @@ class _Prepared:
     QUb: sp.csr_array        # Q[U, b_sorted]
     b_sorted: np.ndarray
     dK: np.ndarray
-    factor: Factor
-    factor_seconds: float
+    backend: str
+    factor_seconds: float = 0.0
+    _factor: Factor | None = None
+
+    @property
+    def factor(self) -> Factor:
+        """Sparse Cholesky factor of K, computed on first use (regions may not need it)."""
+        if self._factor is None:
+            t = time.perf_counter()
+            try:
+                self._factor = Factor(self.K, self.backend)
+            except np.linalg.LinAlgError as exc:
+                raise ValueError(f"the bilaplacian restricted to the free vertices is not "
+                                 f"positive definite ({exc}); is the mesh degenerate?") from exc
+            self.factor_seconds += time.perf_counter() - t
+        return self._factor
 
 
 class BBWSolver:
@@ -361,6 +380,7 @@ class BBWSolver:
         self._adj = sp.csr_array(A + sp.diags_array((np.diff(A.indptr) == 0).astype(float)))
         self._n_comp, self._comp = connected_components(A, directed=False)
         self._prepared: _Prepared | None = None
+        self._graph: sp.csr_array | None = None
         self.last_report: BBWReport | None = None
 
     # ----------------------------------------------------------------------------------
@@ -417,19 +437,13 @@ class BBWSolver:
         QU = self.Q[U]
         K = sp.csr_array(QU[:, U])
         QUb = sp.csr_array(QU[:, b])
-        t = time.perf_counter()
-        try:
-            factor = Factor(K, self.backend)
-        except np.linalg.LinAlgError as exc:
-            raise ValueError(f"the bilaplacian restricted to the free vertices is not positive "
-                             f"definite ({exc}); is the mesh degenerate?") from exc
-        self._prepared = _Prepared(key, U, K, QUb, b, K.diagonal(), factor,
-                                   time.perf_counter() - t)
+        self._prepared = _Prepared(key, U, K, QUb, b, K.diagonal(), self.backend)
         return self._prepared
 
     # ----------------------------------------------------------------------------------
     def solve(self, b, bc, *, partition_of_unity: bool = False, tol: float = 1e-10,
-              max_iter: int = 200) -> np.ndarray:
+              max_iter: int = 200, restrict: bool = True,
+              progress: Callable[[int, int], None] | None = None) -> np.ndarray:
         """Bounded biharmonic weights for the boundary conditions ``w[b] = bc``.
 
         Parameters
@@ -447,6 +461,16 @@ class BBWSolver:
             KKT tolerance: the natural residual of every function, in weight units.
         max_iter : int
             Rounds of the active-set method per function.
+        restrict : bool
+            Solve each function only on the part of the mesh where it can be
+            non-zero (its handles' geodesic cells and the neighbouring cells), with
+            ``w = 0`` fixed elsewhere; the KKT conditions are then checked on the
+            whole mesh and the part is grown until they hold, so the answer is the
+            same as without. Functions whose part would cover most of the mesh
+            share one factorization of the whole. Ignored with
+            ``partition_of_unity``.
+        progress : callable, optional
+            ``progress(done, total)`` after each weight function is finished.
 
         Returns
         -------
@@ -460,10 +484,15 @@ class BBWSolver:
             raise ValueError(f"tol must be > 0, got {tol}")
         if int(max_iter) < 1:
             raise ValueError(f"max_iter must be >= 1, got {max_iter}")
+        if progress is not None and not callable(progress):
+            raise TypeError(f"progress must be callable(done, total) or None, "
+                            f"got {type(progress).__name__}")
         with _blas_threads(self.blas_threads):
-            return self._solve(b, bc, bool(partition_of_unity), tol, int(max_iter))
+            return self._solve(b, bc, bool(partition_of_unity), tol, int(max_iter),
+                               bool(restrict), progress)
 
-    def _solve(self, b, bc, partition_of_unity: bool, tol: float, max_iter: int) -> np.ndarray:
+    def _solve(self, b, bc, partition_of_unity: bool, tol: float, max_iter: int,
+               restrict: bool = False, progress=None) -> np.ndarray:
         t0 = time.perf_counter()
         b, bc = self._check_bc(b, bc, partition_of_unity)
         m = bc.shape[1]
@@ -475,25 +504,29 @@ class BBWSolver:
                 zero, np.zeros(m), zero, zero, zero, zero, np.ones(m, dtype=bool),
                 partition_of_unity, tol, self.backend, 0,
                 {"factor": 0.0, "solve": 0.0, "total": time.perf_counter() - t0})
+            if progress is not None:
+                progress(m, m)
             return W
-        was_ready = self._prepared is not None and self._prepared.key == b.tobytes()
         P = self._prepare(b)
+        f0 = P.factor_seconds
         C = np.asarray(P.QUb @ bc)
-        Xu = -P.factor.solve(C)
-        run = _Run(self, P, tol, max_iter)
-        run.n_solves += C.shape[1]
         if partition_of_unity:
+            Xu = -P.factor.solve(C)
+            run = _Run(self, P, tol, max_iter)
+            run.n_solves += C.shape[1]
             X, rep = run.pou(Xu, C)
+            rep.n_solves = run.n_solves
+            if progress is not None:
+                progress(m, m)
+            t_factor = P.factor_seconds - f0
         else:
-            X, rep = run.boxes(Xu, C)
+            X, rep, t_region = self._solve_boxes(P, C, bc, tol, max_iter, restrict, progress)
+            t_factor = P.factor_seconds - f0 + t_region
         W = np.empty((self.n, bc.shape[1]))
         W[P.b_sorted] = bc
         W[P.U] = X
-        rep.seconds = {"factor": 0.0 if was_ready else P.factor_seconds,
-                       "solve": time.perf_counter() - t0 - (0.0 if was_ready
-                                                            else P.factor_seconds),
-                       "total": time.perf_counter() - t0}
-        rep.n_solves = run.n_solves
+        total = time.perf_counter() - t0
+        rep.seconds = {"factor": t_factor, "solve": total - t_factor, "total": total}
         self.last_report = rep
         if not rep.all_converged:
             bad = np.flatnonzero(~rep.converged)
@@ -502,6 +535,152 @@ class BBWSolver:
                           f"{rep.kkt_residual.max():.3g} (see solver.last_report)",
                           BBWConvergenceWarning, stacklevel=3)
         return W
+
+    # ---- independent functions, each on its own part of the mesh ------------------------
+    def _solve_boxes(self, P: _Prepared, C, bc, tol, max_iter, restrict, progress):
+        nu, m = C.shape
+        masks = self._regions(P, bc) if restrict and m > 1 else [None] * m
+        X = np.zeros((nu, m))
+        stats = {k: np.zeros(m, dtype=dt) for k, dt in (
+            ("iterations", np.int64), ("kkt_residual", float), ("n_constraints", np.int64),
+            ("n_polish", np.int64))}
+        n_solves, t_region, done = 0, 0.0, 0
+
+        def tick(k: int) -> None:
+            nonlocal done
+            done += k
+            if progress is not None and k:
+                progress(done, m)
+
+        def keep(cols, x, rep):
+            X[:, cols] = x
+            for k in stats:
+                stats[k][cols] = getattr(rep, k)
+
+        glob = [j for j in range(m) if masks[j] is None]
+        for j in range(m):
+            if masks[j] is None:
+                continue
+            out = self._solve_in_region(P, C[:, j], masks[j], tol, max_iter)
+            if out is None:                 # the part kept growing: solve on the whole
+                glob.append(j)
+                continue
+            x, rep, ns, tf = out
+            keep([j], x[:, None], rep)
+            n_solves, t_region = n_solves + ns, t_region + tf
+            tick(1)
+        if glob:
+            glob = sorted(glob)
+            Xu = -P.factor.solve(C[:, glob])
+            run = _Run(self, P, tol, max_iter, on_done=tick)
+            run.n_solves += len(glob)
+            x, rep = run.boxes(Xu, C[:, glob])
+            keep(glob, x, rep)
+            n_solves += run.n_solves
+        res = stats["kkt_residual"]
+        return X, BBWReport(
+            iterations=stats["iterations"], kkt_residual=res,
+            n_lower=np.sum(X <= 0.0, axis=0), n_upper=np.sum(X >= 1.0, axis=0),
+            n_constraints=stats["n_constraints"], n_polish=stats["n_polish"],
+            converged=res <= tol, partition_of_unity=False, tol=tol, backend=self.backend
+            if self.backend != "auto" else _concrete_backend(), n_solves=n_solves), t_region
+
+    def _labels(self, P: _Prepared, bc: np.ndarray) -> np.ndarray:
+        """Per vertex: the function whose handle is geodesically nearest (-1: an all-zero one)."""
+        from scipy.sparse.csgraph import dijkstra
+
+        if self._graph is None:
+            A = sp.triu(self._adj, k=1, format="coo")
+            w = np.linalg.norm(self.V[A.row] - self.V[A.col], axis=1)
+            self._graph = sp.csr_array((np.maximum(w, 1e-300), (A.row, A.col)),
+                                       shape=(self.n, self.n))
+        lab_b = np.where(bc.max(axis=1) > 0, np.argmax(bc, axis=1), -1)
+        _, _, src = dijkstra(self._graph, directed=False, indices=P.b_sorted, min_only=True,
+                             return_predecessors=True)
+        lab = np.full(self.n, -1, dtype=np.int64)
+        of_vertex = np.full(self.n, -1, dtype=np.int64)
+        of_vertex[P.b_sorted] = lab_b
+        reached = src >= 0
+        lab[reached] = of_vertex[src[reached]]
+        return lab
+
+    def _regions(self, P: _Prepared, bc: np.ndarray) -> list:
+        """For each function: a mask over U of where it may be non-zero, or None (whole mesh).
+
+        The part of function j: the cells (vertices nearest, along mesh edges, to a
+        handle of some function) of j, of every function with a non-zero handle value
+        in column j, and of the functions whose cells touch those.
+        """
+        nu, m = P.U.size, bc.shape[1]
+        lab = self._labels(P, bc)
+        A = sp.triu(self._adj, k=1, format="coo")
+        la, lb = lab[A.row], lab[A.col]
+        cross = (la != lb) & (la >= 0) & (lb >= 0)
+        touch = np.zeros((m, m), dtype=bool)
+        touch[la[cross], lb[cross]] = True
+        touch |= touch.T
+        np.fill_diagonal(touch, True)
+        labU = lab[P.U]
+        self._labU = labU
+        masks = []
+        for j in range(m):
+            own = np.zeros(m, dtype=bool)
+            own[np.unique(np.argmax(bc[bc[:, j] > 0], axis=1))] = True
+            own[j] = True
+            allowed = touch[own].any(axis=0)
+            mask = np.zeros(nu, dtype=bool)
+            ok = labU >= 0
+            mask[ok] = allowed[labU[ok]]
+            mask = self._dilate(P, mask, _MARGIN_RINGS)
+            masks.append(mask if mask.sum() <= _REGION_MAX * nu else None)
+        return masks
+
+    def _solve_in_region(self, P: _Prepared, c: np.ndarray, mask: np.ndarray, tol, max_iter):
+        """One function on ``mask`` (w = 0 outside), grown until the whole QP's KKT hold."""
+        nu = P.U.size
+        n_solves, t_factor = 0, 0.0
+        for _ in range(_GROW_MAX):
+            if mask.sum() > _REGION_MAX * nu:
+                return None
+            R = np.flatnonzero(mask)
+            K = sp.csr_array(P.K[R][:, R])
+            Pr = _Prepared(b"", P.U[R], K, None, P.b_sorted, K.diagonal(), self.backend)
+            cr = c[R][:, None]
+            run = _Run(self, Pr, tol, max_iter)
+            xu = -Pr.factor.solve(cr)
+            run.n_solves += 1
+            xr, rep = run.boxes(xu, cr)
+            n_solves, t_factor = n_solves + run.n_solves, t_factor + Pr.factor_seconds
+            x = np.zeros(nu)
+            x[R] = xr[:, 0]
+            # Outside the part x = 0: its bound multiplier z = K x + c must be >= 0 there.
+            z = P.K @ x + c
+            viol = ~mask & (-z / P.dK > tol)
+            res_out = float(np.max(np.where(mask, 0.0, np.maximum(-z / P.dK, 0.0)),
+                                   initial=0.0))
+            rep.kkt_residual = np.maximum(rep.kkt_residual, res_out)
+            if not viol.any():
+                return x, rep, n_solves, t_factor
+            mask = self._grow(P, mask, viol)
+        return None
+
+    def _dilate(self, P: _Prepared, mask: np.ndarray, rings: int) -> np.ndarray:
+        """``mask`` (over U) grown by ``rings`` rings of mesh neighbours."""
+        full = np.zeros(self.n, dtype=bool)
+        full[P.U[mask]] = True
+        for _ in range(rings):
+            full[self._adj.indices[np.repeat(full, np.diff(self._adj.indptr))]] = True
+        return full[P.U]
+
+    def _grow(self, P: _Prepared, mask: np.ndarray, viol: np.ndarray) -> np.ndarray:
+        """Add the violating vertices and their neighbourhoods to the part."""
+        return mask | self._dilate(P, viol, _GROW_RINGS)
+
+
+def _concrete_backend() -> str:
+    from ._cholesky import available_backends
+
+    return available_backends()[0]
 
 
 class _Green:
@@ -553,8 +732,10 @@ class _Green:
 class _Run:
     """One call of :meth:`BBWSolver.solve`: the dual active-set iterations."""
 
-    def __init__(self, solver: BBWSolver, P: _Prepared, tol: float, max_iter: int):
+    def __init__(self, solver: BBWSolver, P: _Prepared, tol: float, max_iter: int,
+                 on_done: Callable[[int], None] | None = None):
         self.s, self.P, self.tol, self.max_iter = solver, P, tol, max_iter
+        self.on_done = on_done
         self.delta = 0.25 * tol
         self.n_solves = 0
         self.nu = P.U.size
@@ -602,6 +783,8 @@ class _Run:
                 cand = self._candidates(np.maximum(-x, x - 1.0), excl)
                 if cand.size == 0:
                     done[j] = True
+                    if self.on_done is not None:
+                        self.on_done(1)
                     continue
                 iters[j] += 1
                 # a dropped constraint that is violated again gets its slot back
@@ -628,6 +811,8 @@ class _Run:
             self.n_solves += rhs.shape[1]
             for col, j in enumerate(new):
                 X[:, j] = Xu[:, j] + Y[:, col]
+        if self.on_done is not None and not done.all():
+            self.on_done(int((~done).sum()))
         return self._finish_boxes(X, C, schur, iters)
 
     def _columns(self, green: _Green, new: dict, slots: dict) -> dict:
@@ -819,7 +1004,8 @@ def bbw(V, E, b, bc, *, partition_of_unity: bool = False, tol: float = 1e-10,
 
 def bone_weights(V, sk: Skeleton, method: Literal["bbw"] = "bbw", *, F=None, T=None,
                  partition_of_unity: bool = False, samples: int | None = None,
-                 tol: float = 1e-10) -> np.ndarray:
+                 tol: float = 1e-10,
+                 progress: Callable[[int, int], None] | None = None) -> np.ndarray:
     """Bone weights W (n, b) for a skeleton, rows summing to 1 (DESIGN §4).
 
     Parameters
@@ -841,6 +1027,8 @@ def bone_weights(V, sk: Skeleton, method: Literal["bbw"] = "bbw", *, F=None, T=N
         :func:`stbs.weights.boundary.boundary_conditions`).
     tol : float
         KKT tolerance of the QP.
+    progress : callable, optional
+        ``progress(done, total)`` after each bone's function is solved.
 
     Returns
     -------
@@ -881,7 +1069,7 @@ def bone_weights(V, sk: Skeleton, method: Literal["bbw"] = "bbw", *, F=None, T=N
     b, bc = boundary_conditions(V, sk, F=E if E.shape[1] == 3 else None,
                                 T=E if E.shape[1] == 4 else None, samples=samples)
     solver = BBWSolver(V, E)
-    W = solver.solve(b, bc, partition_of_unity=partition_of_unity, tol=tol)
+    W = solver.solve(b, bc, partition_of_unity=partition_of_unity, tol=tol, progress=progress)
     s = W.sum(axis=1)
     if np.any(s <= 1e-12):
         i = int(np.argmin(s))
