@@ -84,3 +84,26 @@ def test_weights_recomputes_endpoint_weights_in_place(shared_data, tmp_path):
     out2 = tmp_path / "cant2.npz"
     assert main(["weights", str(rig_path), "--bone", "bbw", "-o", str(out2)]) == 0
     check_rig(out2, 200, 4)
+
+
+def test_progress_bars_on_a_terminal(capsys):
+    """On a terminal the long stages show a bar that counts the bones; off it, nothing."""
+    from stbs.cli.rig import _Stages
+    from stbs.weights import bone_weights
+
+    V = np.array([[x, y] for x in np.linspace(0, 4, 21) for y in np.linspace(0, 1, 6)])
+    idx = np.arange(len(V)).reshape(21, 6)
+    a, b, c, d = idx[:-1, :-1].ravel(), idx[1:, :-1].ravel(), idx[1:, 1:].ravel(), \
+        idx[:-1, 1:].ravel()
+    F = np.r_[np.c_[a, b, c], np.c_[a, c, d]]
+    sk = stbs.Skeleton(np.array([[0.4, 0.4], [2.0, 0.4], [3.6, 0.4]]), [[0, 1], [1, 2]])
+    st = _Stages()
+    st.live = True
+    W = st.run("bone weights (bbw)", bone_weights, V, sk, F=F, bar=True)
+    err = capsys.readouterr().err
+    assert W.shape == (len(V), 2)
+    assert "bone weights (bbw) ..." in err and "[" + "#" * 30 + "] 2/2" in err
+    st.live = False
+    st.run("again", bone_weights, V, sk, F=F, bar=True)
+    assert capsys.readouterr().err == ""
+    assert [label for label, _ in st.times] == ["bone weights (bbw)", "again"]

@@ -52,13 +52,29 @@ class _Stages:
         self.times: list[tuple[str, float]] = []
         self.live = sys.stderr.isatty()
 
-    def run(self, label: str, fn, *a, **kw):
+    def run(self, label: str, fn, *a, bar: bool = False, **kw):
+        """Run ``fn(*a, **kw)`` as a timed stage; ``bar``: pass it a ``progress`` callback."""
         if self.live:
             print(f"stbs rig: {label} ...", file=sys.stderr, flush=True)
+        if bar:
+            kw["progress"] = self._bar(label) if self.live else None
         t = time.perf_counter()
         out = fn(*a, **kw)
         self.times.append((label, time.perf_counter() - t))
+        if bar and self.live:
+            print(file=sys.stderr, flush=True)
         return out
+
+    @staticmethod
+    def _bar(label: str, width: int = 30):
+        t0 = time.perf_counter()
+
+        def progress(done: int, total: int) -> None:
+            k = int(width * done / max(total, 1))
+            print(f"\r  {label}: [{'#' * k}{'.' * (width - k)}] {done}/{total} "
+                  f"{time.perf_counter() - t0:6.1f} s", end="", file=sys.stderr, flush=True)
+
+        return progress
 
     def summary(self) -> str:
         total = sum(t for _, t in self.times)
@@ -105,7 +121,7 @@ def compute_weights(st: _Stages, V, F, T, sk, *, bone: str, endpoint: str, tets:
             tet = st.run("tetrahedralize (bones inside)", tetrahedralize, V, F, sk)
             Vm, Fm, Tm = tet.V, F, tet.T
         Wm = st.run("bone weights (bbw)", bone_weights, Vm, sk, method="bbw",
-                    F=Fm if Tm is None else None, T=Tm)
+                    F=Fm if Tm is None else None, T=Tm, bar=True)
         W = Wm[:n]
     elem = dict(T=Tm) if Tm is not None else dict(F=Fm)
     if endpoint == "heat":
@@ -116,7 +132,7 @@ def compute_weights(st: _Stages, V, F, T, sk, *, bone: str, endpoint: str, tets:
         E = st.run(f"endpoint weights ({endpoint})", endpoint_weights, V, sk, method=endpoint)
     else:
         E = st.run(f"endpoint weights ({endpoint})", endpoint_weights, Vm, sk,
-                   method=endpoint, W=Wm, **elem)[:n]
+                   method=endpoint, W=Wm, bar=True, **elem)[:n]
     return W, E, Tm is T and T is not None
 
 

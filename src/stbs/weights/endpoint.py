@@ -353,7 +353,8 @@ def _solve_region(BBWSolver, V: np.ndarray, E: np.ndarray, mask: np.ndarray | No
 
 
 def bbw_endpoint(V, sk: Skeleton, *, T=None, F=None, W=None,
-                 threshold: float | None = DEFAULT_THRESHOLD, joints: bool = False) -> np.ndarray:
+                 threshold: float | None = DEFAULT_THRESHOLD, joints: bool = False,
+                 progress=None) -> np.ndarray:
     """Bounded biharmonic endpoint weights, solved directly or as joint weights.
 
     Parameters
@@ -376,6 +377,8 @@ def bbw_endpoint(V, sk: Skeleton, *, T=None, F=None, W=None,
         ``a_i``, ``1`` at ``b_i`` and ``t`` at every vertex on the bone (linear along
         it). True (``"bbw-joints"``): joint weights, 1 at the joint and 0 at the other
         joints, combined by eq. 7.
+    progress : callable, optional
+        ``progress(done, total)`` after each bone.
 
     Returns
     -------
@@ -408,6 +411,8 @@ def bbw_endpoint(V, sk: Skeleton, *, T=None, F=None, W=None,
         J = np.zeros((n, sk.n_joints))
         J[verts] = X
         E[verts] = joints_to_endpoint(J[verts], sk)
+        if progress is not None:
+            progress(b, b)
         return E
     for i in range(b):
         a, e = (int(k) for k in sk.BE[i])
@@ -433,6 +438,8 @@ def bbw_endpoint(V, sk: Skeleton, *, T=None, F=None, W=None,
                 bidx, vals = bidx[keep], vals[keep]
         verts, X = _solve_region(BBWSolver, V, El, mask, bidx, vals, cache)
         E[verts, i] = X[:, 0] if not joints else 0.5 * ((1.0 - X[:, 0]) + X[:, 1])
+        if progress is not None:
+            progress(i + 1, b)
     return np.clip(E, 0.0, 1.0)
 
 
@@ -453,7 +460,8 @@ def _unique_joint_vertices(jv: dict[int, int]) -> tuple[np.ndarray, np.ndarray]:
 def endpoint_weights(V, sk: Skeleton, method: EndpointMethod = "projection", *,
                      W=None, F=None, T=None, threshold: float | None = DEFAULT_THRESHOLD,
                      alpha: float | None = None, normalize: IdwNormalization | None = None,
-                     backend: _raycast.RayBackend | None = None) -> np.ndarray:
+                     backend: _raycast.RayBackend | None = None,
+                     progress=None) -> np.ndarray:
     """Endpoint weights E (n, b) by one of the paper's methods.
 
     Parameters
@@ -482,6 +490,8 @@ def endpoint_weights(V, sk: Skeleton, method: EndpointMethod = "projection", *,
         or over all joints.
     backend : {"auto", "embree", "numpy"}, optional
         ``"heat"`` only: visibility ray casting (default ``"auto"``).
+    progress : callable, optional
+        ``progress(done, total)`` after each bone (``"bbw"``, ``"bbw-joints"``).
 
     Returns
     -------
@@ -513,4 +523,4 @@ def endpoint_weights(V, sk: Skeleton, method: EndpointMethod = "projection", *,
         return heat_endpoint(V, F, sk, W=W, threshold=threshold,
                              backend="auto" if backend is None else backend)
     return bbw_endpoint(V, sk, T=T, F=F, W=W, threshold=threshold,
-                        joints=method == "bbw-joints")
+                        joints=method == "bbw-joints", progress=progress)
