@@ -1,4 +1,6 @@
-"""``stbs bench``: delegates to :mod:`stbs.bench`, imported only when the command runs."""
+"""``stbs bench``: delegates to :mod:`stbs.bench` (skinning throughput) or, with
+``--weights``, to :mod:`stbs.bench_weights` (BBW against igl.bbw), imported only when
+the command runs."""
 
 from __future__ import annotations
 
@@ -9,31 +11,63 @@ from collections.abc import Sequence
 from ._errors import CommandError
 
 NAME = "bench"
-HELP = "throughput of the four skinning methods on this machine"
+HELP = "throughput of the four skinning methods, or (--weights) BBW against igl.bbw"
 EXAMPLE = "stbs bench"
 DESCRIPTION = ("Time lbs, dqs, stbs-lbs and stbs-dqs per vertex on this machine, beside "
-               "NumPy, SciPy and libigl peers (the options below come from stbs.bench).")
-EPILOG = f"examples:\n  {EXAMPLE}\n  stbs bench --sizes 100k --dtype float32 --no-peers"
+               "NumPy, SciPy and libigl peers (the options below come from stbs.bench). "
+               "With --weights: time bounded biharmonic weights against libigl's igl.bbw "
+               "instead (its own options: stbs bench --weights --help).")
+EPILOG = (f"examples:\n  {EXAMPLE}\n  stbs bench --sizes 100k --dtype float32 --no-peers\n"
+          "  stbs bench --weights --cases 2d-5k,3d-10k --json bbw.json")
+WEIGHTS_DESCRIPTION = (
+    "Time stbs's bounded biharmonic weights (BBWSolver construction + solve) against "
+    "libigl's igl.bbw on the same meshes and boundary conditions, and a complete 20-bone "
+    "rig (bone + endpoint weights) per stage (the options below come from "
+    "stbs.bench_weights).")
+WEIGHTS_EPILOG = ("examples:\n  stbs bench --weights\n"
+                  "  stbs bench --weights --cases 2d-small --igl-max-vertices 0\n"
+                  "  stbs bench --weights --cases 3d-50k --igl-max-vertices 100000 "
+                  "--igl-timeout 1800 --json bbw.json")
 
 
-def _module():
+def _module(name: str = "stbs.bench"):
     try:
-        bench = importlib.import_module("stbs.bench")
+        bench = importlib.import_module(name)
     except ModuleNotFoundError as exc:
-        if exc.name != "stbs.bench":
+        if exc.name != name:
             raise
-        raise CommandError("the benchmark module stbs.bench is missing from this installation "
-                         "(reinstall stbs-skinning)") from None
+        raise CommandError(f"the benchmark module {name} is missing from this installation "
+                           "(reinstall stbs-skinning)") from None
     return bench
+
+
+def _wants_weights(argv: Sequence[str]) -> bool:
+    args = list(argv)
+    if "--" in args:
+        args = args[:args.index("--")]
+    return "--weights" in args
 
 
 def run_delegated(argv: Sequence[str], *, debug: bool,
                   parser_class: type[argparse.ArgumentParser]) -> int:
-    """Parse ``argv`` with :func:`stbs.bench.add_arguments` and call :func:`stbs.bench.run`."""
-    bench = _module()
-    p = parser_class(prog=f"stbs {NAME}", description=DESCRIPTION, epilog=EPILOG,
+    """Parse ``argv`` with the benchmark module's ``add_arguments`` and call its ``run``:
+    :mod:`stbs.bench_weights` when ``--weights`` is given, else :mod:`stbs.bench`."""
+    weights = _wants_weights(argv)
+    bench = _module("stbs.bench_weights" if weights else "stbs.bench")
+    epilog = EPILOG
+    if weights:
+        cases = getattr(bench, "CASES", {})
+        epilog = "cases:\n" + "".join(f"  {c.name:<10} {c.about}\n" for c in cases.values())
+        epilog += "\n" + WEIGHTS_EPILOG
+    p = parser_class(prog=f"stbs {NAME}",
+                     description=WEIGHTS_DESCRIPTION if weights else DESCRIPTION,
+                     epilog=epilog,
                      formatter_class=argparse.RawDescriptionHelpFormatter)
     bench.add_arguments(p)
+    if not weights and not any("--weights" in a.option_strings for a in p._actions):
+        p.add_argument("--weights", action="store_true",
+                       help="time bounded biharmonic weights against igl.bbw instead "
+                            "(its options: stbs bench --weights --help)")
     if not any("--debug" in a.option_strings for a in p._actions):
         p.add_argument("--debug", action="store_true", default=argparse.SUPPRESS,
                        help="show the full traceback instead of a one-line error")
