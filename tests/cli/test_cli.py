@@ -350,10 +350,32 @@ def test_bench_missing_module_is_one_clear_line(capsys, monkeypatch):
 
 # ---------------------------------------------------------------- demo
 def test_demo_command(capsys, tmp_path):
-    code, out, err = run(capsys, "demo", "--quick", "--out", tmp_path / "demo")
-    assert (code, err) == (0, "")
-    assert "Fig. 2" in out and "wrote 17 files" in out
+    code, out, err = run(capsys, "demo", "--quick", "--only", "fig2", "--out", tmp_path / "demo")
+    assert code == 0 and "stbs demo: [" in err
+    assert "Fig. 2" in out and "wrote 10 files" in out
     assert (tmp_path / "demo" / "cigar_stbs-dqs.obj").is_file()
+    assert (tmp_path / "demo" / "fig2_cigar.png").is_file()
+    assert (tmp_path / "demo" / "index.html").is_file()
+
+
+@pytest.mark.parametrize("args, match", [
+    (["--only", "fig2,fig9"], "--only: unknown figure 'fig9'"),
+    (["--only", ","], "--only: expected at least one of"),
+])
+def test_demo_bad_only(capsys, tmp_path, args, match):
+    code, out, err = run(capsys, "demo", "--quick", "--out", tmp_path / "d", *args)
+    assert code == 2 and out == "" and err.count("\n") == 1 and match in err
+    assert "Traceback" not in err and not (tmp_path / "d").exists()
+
+
+def test_demo_unwritable_out(capsys, tmp_path):
+    (tmp_path / "f").write_text("x")
+    code, out, err = run(capsys, "demo", "--quick", "--only", "fig2", "--out", tmp_path / "f")
+    assert code == 2 and err.startswith("stbs demo: error:") and err.count("\n") == 1
+    code, out, err = run(capsys, "demo", "--quick", "--only", "fig2", "--out",
+                         tmp_path / "f" / "sub")
+    assert code == 2 and err.startswith("stbs demo: error:") and err.count("\n") == 1
+    assert (tmp_path / "f").read_text() == "x"
 
 
 # ---------------------------------------------------------------- installed script

@@ -129,36 +129,120 @@ def test_quick_and_full_meshes_give_the_same_numbers():
 
 
 # ---------------------------------------------------------------- run_demo
-def test_run_demo_writes_meshes_and_summary_only_inside_out_dir(tmp_path, monkeypatch, capsys):
-    monkeypatch.chdir(tmp_path)
-    out = tmp_path / "a" / "demo"
-    res = run_demo(out, quick=True)
-    printed = capsys.readouterr().out
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["a"]
+@pytest.fixture(scope="module")
+def quick_demo(tmp_path_factory):
+    root = tmp_path_factory.mktemp("demo")
+    out = root / "a" / "demo"
+    import io
+
+    buf, bar = io.StringIO(), io.StringIO()
+    res = run_demo(out, quick=True, stream=buf, progress=bar)
+    return root, out, res, buf.getvalue(), bar.getvalue()
+
+
+PNGS = ["fig2_cigar.png", "fig3_box.png", "fig3_bar.png", "fig4_leg.png", "fig5_arm.png",
+        "fig6_character.png", "fig7_neck.png", "fig8_box360.png", "fig10_torso.png",
+        "fig12_picture.png"]
+GIFS = ["fig2_cigar.gif", "fig3_box_twist.gif", "fig5_arm_twist.gif", "fig12_picture.gif"]
+
+
+def test_run_demo_writes_every_file_only_inside_out_dir(quick_demo):
+    root, out, res, printed, bar = quick_demo
+    assert sorted(p.name for p in root.iterdir()) == ["a"]
     names = sorted(p.name for p in out.iterdir())
-    want = [f"{c}_{m}.obj" for c in ("cigar", "box", "bar") for m in ("rest", *stbs.METHODS)]
-    assert names == sorted(want + ["summary.json", "summary.txt"])
+    meshes = [f"{c}_{m}.obj" for c in ("cigar", "box", "bar") for m in ("rest", *stbs.METHODS)]
+    assert names == sorted(meshes + PNGS + GIFS + ["index.html", "summary.json",
+                                                   "summary.txt"])
     assert sorted(p.name for p in res.files) == names
-    for c, fig in res.figures.items():
-        rest = read_mesh(out / f"{c}_rest.obj")
-        np.testing.assert_allclose(rest.V, fig.V, atol=0)
-        np.testing.assert_array_equal(rest.F, fig.F)
+    for c in ("cigar", "box", "bar"):
+        fig = res.figures[c]
+        np.testing.assert_allclose(read_mesh(out / f"{c}_rest.obj").V, fig.V, atol=0)
         for m in stbs.METHODS:
             np.testing.assert_allclose(read_mesh(out / f"{c}_{m}.obj").V, fig.U[m], atol=0)
     assert printed.startswith(res.summary)
     assert (out / "summary.txt").read_text() == res.summary
-    for line in ("Fig. 2", "Fig. 3 left", "Fig. 3 right", "beyond end / rest",
-                 "mid twist (deg)", "min radius / rest", "note: lbs, dqs: no twist term"):
-        assert line in res.summary
     saved = json.loads((out / "summary.json").read_text())
     assert saved["numbers"] == res.numbers
-    assert res.numbers["cigar"]["lbs"]["beyond"] == pytest.approx(2)
-    assert res.numbers["box"]["stbs-dqs"]["mid"] == pytest.approx(157.5)
+    assert "10/10" in bar and "fig12" in bar       # the progress lines
 
 
-def test_run_demo_quiet_and_bad_out_dir(tmp_path, capsys):
-    run_demo(tmp_path / "d", quick=True, quiet=True)
-    assert capsys.readouterr().out == ""
+def test_pictures_are_not_blank_and_the_gallery_links_them(quick_demo):
+    from PIL import Image
+
+    _, out, res, _, _ = quick_demo
+    for name in PNGS:
+        im = np.asarray(Image.open(out / name).convert("RGB"))
+        assert im.shape[0] > 100 and im.shape[1] > 100, name
+        ink = np.any(im < 235, axis=2).mean()
+        assert ink > 0.05, f"{name}: {ink:.3f} of the pixels drawn"
+        assert len(np.unique(im.reshape(-1, 3), axis=0)) > 200, name
+    for name in GIFS:
+        with Image.open(out / name) as g:
+            assert g.n_frames >= 8, name
+    html = (out / "index.html").read_text()
+    for name in PNGS + GIFS:
+        assert f'src="{name}"' in html, name
+    for fig in res.figures.values():
+        assert fig.title.split(":")[0] in html
+
+
+def test_method_panels_differ(quick_demo):
+    from stbs.demo.render import Panel, draw_panels
+
+    _, _, res, _, _ = quick_demo
+    for name in ("arm", "leg", "neck", "box360", "torso", "box", "bar"):
+        fig = res.figures[name]
+        kw = next(iter(fig.pictures.values()))
+        panels = [p for p in kw["panels"] if isinstance(p, Panel)]
+        a = draw_panels([panels[0]], camera=kw.get("camera"))
+        b = draw_panels([panels[-1]], camera=kw.get("camera"))
+        assert a.shape == b.shape and np.abs(a.astype(int) - b.astype(int)).mean() > 0.5, name
+
+
+def test_numbers_point_the_papers_way(quick_demo):
+    n = quick_demo[2].numbers
+    # Fig. 2: STBS keeps the cigar's end, LBS grows it
+    assert n["cigar"]["lbs"]["beyond"] == pytest.approx(2)
+    assert n["cigar"]["stbs-lbs"]["beyond"] == pytest.approx(1)
+    # Fig. 3: STBS spreads the twist, LBS/DQS concentrate it
+    assert n["box"]["stbs-dqs"]["mid"] == pytest.approx(157.5)
+    assert n["box"]["lbs"]["mid"] == pytest.approx(315)
+    assert n["bar"]["stbs-dqs"]["twist_mid"] == pytest.approx(90, abs=1)
+    assert abs(n["bar"]["dqs"]["twist_mid"]) < 1 and n["bar"]["lbs"]["radius"] < 0.5
+    # Figs. 1/5: LBS collapses, STBS-DQS does not; the hand explodes without STBS
+    arm = n["arm"]
+    assert arm["lbs"]["radius"] < 0.5 and arm["dqs"]["radius"] > 0.95
+    assert arm["stbs-dqs"]["radius"] > 0.95
+    assert arm["lbs"]["hand"] > 1.3 and arm["dqs"]["hand"] > 1.3
+    assert arm["stbs-dqs"]["hand"] == pytest.approx(1, abs=0.02)
+    # Fig. 4: point weights bend the thigh, bone weights explode the foot, STBS does neither
+    leg = n["leg"]
+    assert leg["point weights"]["bend"] > 2 * leg["stbs"]["bend"]
+    assert leg["bone weights"]["stretch"] > 2 * leg["stbs"]["stretch"]
+    # Fig. 6: e low at the bones' starts, high at their ends
+    assert n["character"]["heat"]["start"] < 0.4 < 0.7 < n["character"]["heat"]["end"]
+    # Fig. 7: IDW lets the head sag; projection is only C0 at the bone's end
+    neck = n["neck"]
+    assert neck["idw"]["sag"] > 5 * max(neck["heat"]["sag"], neck["bbw"]["sag"])
+    assert neck["projection"]["jump"] == pytest.approx(1, abs=0.05)
+    assert neck["idw"]["jump"] < 0.8
+    # Fig. 8: BBW reaches the full 360 degrees, heat does not
+    assert n["box360"]["bbw"]["far"] > 355 and n["box360"]["heat"]["far"] < 350
+    # Fig. 10: the spline filter moves the twist into the abdomen
+    torso = n["torso"]
+    assert torso["spline"]["abdomen"] > torso["identity"]["abdomen"] + 0.2
+    assert torso["spline"]["chest"] < torso["identity"]["chest"]
+    # Fig. 12: no triangle turns over
+    assert n["picture"]["stbs-dqs"]["area"] > 0
+
+
+def test_run_demo_only_quiet_and_bad_input(tmp_path, capsys):
+    res = run_demo(tmp_path / "d", quick=True, quiet=True, only="fig2, fig1")
+    assert capsys.readouterr() == ("", "")
+    assert sorted(res.figures) == ["arm", "cigar"]
+    with pytest.raises(ValueError, match="--only: unknown figure 'fig9'; expected"):
+        run_demo(tmp_path / "e", quick=True, quiet=True, only="fig2,fig9")
+    assert not (tmp_path / "e").exists()
     (tmp_path / "file").write_text("x")
     with pytest.raises(NotADirectoryError):
         run_demo(tmp_path / "file", quick=True, quiet=True)

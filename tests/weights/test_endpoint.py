@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import importlib.util
-import itertools
 
 import numpy as np
 import pytest
@@ -12,6 +11,7 @@ from scipy.optimize import lsq_linear
 
 import stbs
 import stbs.io
+from stbs.demo.shapes import box_tets
 from stbs.weights import endpoint as ep
 from stbs.weights.laplacian import cotmatrix, massmatrix
 
@@ -19,31 +19,6 @@ HAS_BBW = importlib.util.find_spec("stbs.weights.bbw") is not None
 
 
 # -- meshes --------------------------------------------------------------------------------
-def box_tets(lo=(0.0, 0.0, 0.0), hi=(4.0, 1.0, 1.0), h=0.25):
-    """Kuhn-subdivided voxel grid: V (n, 3), T (t, 4) positively oriented, F its outward surface."""
-    lo, hi = np.asarray(lo, float), np.asarray(hi, float)
-    m = np.round((hi - lo) / h).astype(int)
-    axes = [np.linspace(lo[k], hi[k], m[k] + 1) for k in range(3)]
-    V = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
-    vid = np.arange(V.shape[0]).reshape(m + 1)
-    i, j, k = (g.ravel() for g in np.meshgrid(*[np.arange(s) for s in m], indexing="ij"))
-    corner = {c: vid[i + (c & 1), j + ((c >> 1) & 1), k + ((c >> 2) & 1)] for c in range(8)}
-    T = []
-    for perm in itertools.permutations(range(3)):      # path 0 -> ... -> 7 along the axes
-        c1 = 1 << perm[0]
-        c2 = c1 | (1 << perm[1])
-        T.append(np.stack([corner[0], corner[c1], corner[c2], corner[7]], axis=1))
-    T = np.concatenate(T)
-    X = V[T]
-    vol = np.einsum("ij,ij->i", X[:, 1] - X[:, 0], np.cross(X[:, 2] - X[:, 0], X[:, 3] - X[:, 0]))
-    T[vol < 0] = T[vol < 0][:, [1, 0, 2, 3]]
-    faces = np.concatenate([T[:, [1, 2, 3]], T[:, [0, 3, 2]], T[:, [0, 1, 3]], T[:, [0, 2, 1]]])
-    _, inv, cnt = np.unique(np.sort(faces, axis=1), axis=0, return_inverse=True,
-                            return_counts=True)
-    F = faces[cnt[inv.ravel()] == 1]
-    return V, T, F
-
-
 def grid_2d(keep, x1, y1, h):
     """Triangulated grid over [0, x1] x [0, y1], keeping cells whose centre passes ``keep``."""
     nx, ny = int(round(x1 / h)), int(round(y1 / h))

@@ -1,8 +1,10 @@
-"""The demo: the paper's Figs. 2 and 3 on shapes generated in code (no input files).
+"""The demo: the paper's figures on shapes generated in code (no input files).
 
-``run_demo(out_dir)`` is what ``stbs demo`` runs; :mod:`stbs.demo.figures` has one
-function per figure returning meshes and numbers; :mod:`stbs.demo.shapes` the
-built-in shapes (cigar, box, two-bone bar).
+``run_demo(out_dir)`` is what ``stbs demo`` runs. :mod:`stbs.demo.figures` (Figs. 2,
+3) and :mod:`stbs.demo.paper` (Figs. 4-12) have one function per figure returning
+meshes, numbers and what to draw; :mod:`stbs.demo.shapes` and :mod:`stbs.demo.models`
+build the shapes; :mod:`stbs.demo.render` draws headless PNG/GIF with matplotlib and
+:mod:`stbs.demo.gallery` writes ``index.html``.
 """
 
 from .figures import (
@@ -12,8 +14,8 @@ from .figures import (
     fig3_bar_bend_twist,
     fig3_box_twist,
 )
-from .run import DemoResult, format_summary, run_demo
+from .run import FIGURE_KEYS, DemoResult, format_summary, run_demo
 from .shapes import bar, box, cigar
 
-__all__ = ["run_demo", "DemoResult", "format_summary", "Figure", "FIGURES",
+__all__ = ["run_demo", "DemoResult", "format_summary", "Figure", "FIGURES", "FIGURE_KEYS",
            "fig2_cigar_stretch", "fig3_box_twist", "fig3_bar_bend_twist", "cigar", "box", "bar"]

@@ -38,6 +38,7 @@ from ..skeleton import Skeleton
 from ..skinning import METHODS, deform
 from ..weights.endpoint import projection
 from . import shapes
+from .render import Camera, Panel, PlotPanel
 
 __all__ = ["Figure", "fig2_cigar_stretch", "fig3_box_twist", "fig3_bar_bend_twist",
            "section_twist", "section_radius", "FIGURES"]
@@ -72,6 +73,15 @@ class Figure:
         ``expected[column]``: what the paper predicts, in words.
     notes : list of str
         How the case was set up.
+    key : str
+        The paper's figure (``"fig2"``, ...), as ``stbs demo --only`` takes it.
+    caption : str
+        What the pictures show, for the gallery.
+    pictures : dict[str, dict]
+        PNG file name -> keyword arguments of :func:`stbs.demo.render.render_panels`
+        (``panels``, ``ncols``, ``camera``, ...).
+    animations : dict[str, dict]
+        GIF file name -> keyword arguments of :func:`stbs.demo.render.render_animation`.
     """
 
     name: str
@@ -87,6 +97,10 @@ class Figure:
     columns: list[tuple[str, str, str]] = field(default_factory=list)
     expected: dict[str, str] = field(default_factory=dict)
     notes: list[str] = field(default_factory=list)
+    key: str = ""
+    caption: str = ""
+    pictures: dict = field(default_factory=dict)
+    animations: dict = field(default_factory=dict)
 
 
 # ---------------------------------------------------------------------- measures
@@ -167,6 +181,27 @@ def fig2_cigar_stretch(quick: bool = False, *, sigma: float = 2.0,
     fig.expected = {"beyond": f"lbs, dqs: {sigma:g} (explodes); stbs-*: 1 (kept)"}
     fig.notes = [f"stretch sigma = {sigma:g}; projection endpoint weights (eq. 8); "
                  f"rest length beyond the bone's end = {rest:g}"]
+    fig.key = "fig2"
+    fig.caption = (f"Fig. 2. One bone inside a cigar, stretched to {sigma:g} times its "
+                   "length. LBS (and DQS) must scale the whole shape, so the part beyond the "
+                   "bone's end explodes; STBS varies the stretch with the endpoint weight "
+                   "and carries the tip rigidly.")
+    cam = Camera(azimuth=-90.0, elevation=15.0)
+    panels = [Panel(V, F, title="rest", C=sk.C, BE=sk.BE, color="#c9a27e")]
+    panels += [Panel(fig.U[m], F, title=m, C=pose.joints(), BE=sk.BE, color="#c9a27e",
+                     subtitle=f"beyond end x{fig.numbers[m]['beyond']:.2f}")
+               for m in ("lbs", "stbs-lbs") if m in fig.U]
+    fig.pictures = {"fig2_cigar.png": dict(panels=panels, ncols=1, camera=cam,
+                                           panel_size=(640, 220))}
+    if "lbs" in fig.U and "stbs-lbs" in fig.U:
+        frames = []
+        for k in range(13 if quick else 25):
+            s_k = 1.0 + (sigma - 1.0) * np.sin(np.pi * k / (12 if quick else 24))
+            p_k = forward_kinematics(sk, stretch=[s_k])
+            frames.append([Panel(deform(V, sk, p_k, W, fig.E, method=m), F, title=m,
+                                 color="#c9a27e") for m in ("lbs", "stbs-lbs")])
+        fig.animations = {"fig2_cigar.gif": dict(frames=frames, ncols=1, camera=cam,
+                                                  panel_size=(480, 170))}
     return fig
 
 
@@ -198,6 +233,32 @@ def fig3_box_twist(quick: bool = False, *, degrees: float = 315.0,
                  f"{degrees:g}])",
                  f"lbs, dqs: no twist term, so the bone is rotated {degrees:g} deg about its own "
                  "axis (a joint twist alone would not move them at all)"]
+    fig.key = "fig3"
+    fig.caption = (f"Fig. 3 left. One bone twisted {degrees:g} degrees at its end. With a "
+                   "single bone, LBS and DQS can only turn the whole box rigidly; STBS lets "
+                   "the twist grow along the bone. The plot gives the twist of every "
+                   "cross-section along the box.")
+    shown = [m for m in ("lbs", "dqs", "stbs-dqs") if m in fig.U]
+    panels = [Panel(fig.U[m], F, title=m, C=fig.poses[m].joints(), BE=sk.BE, color="#9fb7d9",
+                    subtitle=f"mid {fig.numbers[m]['mid']:.0f} deg, far "
+                             f"{fig.numbers[m]['far']:.0f} deg") for m in shown]
+    curves = {}
+    for m in shown:
+        xs, ang = _unwrapped_twists(V, fig.U[m], sk.axes[0])
+        curves[m] = ang
+    panels.append(PlotPanel(title="twist along the box", x=xs, ys=curves, xlabel="x",
+                            ylabel="twist (deg)"))
+    fig.pictures = {"fig3_box.png": dict(panels=panels, ncols=2,
+                                         camera=Camera(azimuth=-60.0, elevation=25.0))}
+    frames = []
+    n = 8 if quick else 20
+    for k in range(n + 1):
+        a = theta * k / n
+        frames.append([Panel(deform(V, sk, forward_kinematics(sk, twist=[0.0, a]) if m.startswith(
+            "stbs") else forward_kinematics(sk, rotations=tf.axis_angle_to_matrix(sk.axes, [a])),
+            W, fig.E, method=m), F, title=m, color="#9fb7d9") for m in ("lbs", "stbs-dqs")])
+    fig.animations = {"fig3_box_twist.gif": dict(frames=frames, ncols=2,
+                                                 camera=Camera(azimuth=-60.0, elevation=25.0))}
     return fig
 
 
@@ -248,6 +309,17 @@ def fig3_bar_bend_twist(quick: bool = False, *, bend: float = 60.0, twist: float
                  f"lower bone bent {bend:g} deg about z, upper bone stretched x{sigma:g}",
                  "lbs/dqs ignore the twist angles but the lower bone inherits the twist in "
                  "its rotation"]
+    fig.key = "fig3"
+    fig.caption = (f"Fig. 3 right. Two bones bent {bend:g} degrees, twisted {twist:g} degrees "
+                   f"at the joint and stretched. LBS collapses at the joint (candy wrapper); "
+                   "DQS keeps the volume but packs the twist into the joint; STBS spreads it "
+                   "along the upper bone.")
+    panels = [Panel(fig.U[m], F, title=m, C=pose.joints(), BE=sk.BE, color="#9fb7d9",
+                    subtitle=f"radius {fig.numbers[m]['radius']:.2f}, mid twist "
+                             f"{fig.numbers[m]['twist_mid']:.0f} deg")
+              for m in ("lbs", "dqs", "stbs-dqs") if m in fig.U]
+    fig.pictures = {"fig3_bar.png": dict(panels=panels, ncols=3,
+                                         camera=Camera(azimuth=-60.0, elevation=30.0))}
     return fig
 
 

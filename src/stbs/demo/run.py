@@ -1,17 +1,34 @@
-"""The demo job: the paper's Figs. 2 and 3 on built-in shapes, written as meshes plus a table."""
+"""The demo job: the paper's figures on built-in shapes, as pictures, numbers and a gallery."""
 
 from __future__ import annotations
 
 import json
 import os
 import sys
+import time
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TextIO
 
-from .figures import FIGURES, Figure
+from . import figures, paper
+from .figures import Figure
 
-__all__ = ["run_demo", "DemoResult", "format_summary"]
+__all__ = ["run_demo", "DemoResult", "format_summary", "FIGURE_KEYS", "parse_only"]
+
+#: ``stbs demo --only`` keys, in display order, and the functions that make them.
+_MAKERS = {
+    "fig2": (figures.fig2_cigar_stretch,),
+    "fig3": (figures.fig3_box_twist, figures.fig3_bar_bend_twist),
+    "fig4": (paper.fig4_leg,),
+    "fig5": (paper.fig5_arm,),
+    "fig6": (paper.fig6_character,),
+    "fig7": (paper.fig7_neck,),
+    "fig8": (paper.fig8_box_twist,),
+    "fig10": (paper.fig10_torso,),
+    "fig12": (paper.fig12_picture,),
+}
+FIGURE_KEYS: tuple[str, ...] = tuple(_MAKERS)
+_ALIASES = {"fig1": "fig5"}
 
 
 @dataclass(eq=False)
@@ -21,16 +38,19 @@ class DemoResult:
     Attributes
     ----------
     figures : dict[str, Figure]
-        By name: ``"cigar"``, ``"box"``, ``"bar"``.
+        By name (``"cigar"``, ``"box"``, ``"arm"``, ...).
     files : list of Path
         Every file written, in order.
     summary : str
         The table printed by :func:`run_demo`.
+    seconds : dict[str, float]
+        Wall time per figure key.
     """
 
     figures: dict[str, Figure] = field(default_factory=dict)
     files: list[Path] = field(default_factory=list)
     summary: str = ""
+    seconds: dict[str, float] = field(default_factory=dict)
 
     @property
     def numbers(self) -> dict[str, dict[str, dict[str, float]]]:
@@ -38,16 +58,38 @@ class DemoResult:
         return {k: f.numbers for k, f in self.figures.items()}
 
 
-def format_summary(figures) -> str:
+def parse_only(only) -> list[str]:
+    """Figure keys from ``"fig2,fig5"`` (or a list); ``None`` means all of them."""
+    if only is None:
+        return list(FIGURE_KEYS)
+    items = only.split(",") if isinstance(only, str) else list(only)
+    keys = []
+    for raw in items:
+        k = str(raw).strip().lower()
+        if not k:
+            continue
+        k = _ALIASES.get(k, k)
+        if k not in _MAKERS:
+            raise ValueError(f"--only: unknown figure {str(raw).strip()!r}; expected a "
+                             f"comma-separated list of {', '.join(FIGURE_KEYS)} (fig1 = fig5)")
+        if k not in keys:
+            keys.append(k)
+    if not keys:
+        raise ValueError(f"--only: expected at least one of {', '.join(FIGURE_KEYS)}, got "
+                         f"{only!r}")
+    return keys
+
+
+def format_summary(figs) -> str:
     """A plain-text table per figure: one row per method, one column per number."""
     lines = []
-    for fig in figures:
+    for fig in figs:
         lines.append(fig.title)
         heads = [h for _, h, _ in fig.columns]
         width = max(len("method"), *(len(m) for m in fig.numbers))
-        lines.append("  " + "method".ljust(width) + "".join(f"  {h:>22}" for h in heads))
+        lines.append("  " + "method".ljust(width) + "".join(f"  {h:>26}" for h in heads))
         for m, nums in fig.numbers.items():
-            cells = "".join(f"  {fmt.format(nums[k]):>22}" for k, _, fmt in fig.columns)
+            cells = "".join(f"  {fmt.format(nums[k]):>26}" for k, _, fmt in fig.columns)
             lines.append("  " + m.ljust(width) + cells)
         for k, h, _ in fig.columns:
             lines.append(f"  expected {h}: {fig.expected[k]}")
@@ -56,73 +98,152 @@ def format_summary(figures) -> str:
     return "\n".join(lines).rstrip() + "\n"
 
 
+class _Progress:
+    """A one-line progress bar on a terminal; plain lines otherwise."""
+
+    def __init__(self, total: int, stream: TextIO | None):
+        self.total, self.done, self.stream = total, 0, stream
+        self.live = stream is not None and stream.isatty()
+        self.t0 = time.perf_counter()
+
+    def step(self, label: str) -> None:
+        if self.stream is None:
+            return
+        k = int(24 * self.done / max(self.total, 1))
+        bar = f"[{'#' * k}{'.' * (24 - k)}] {self.done}/{self.total} " \
+              f"{time.perf_counter() - self.t0:5.1f} s  {label}"
+        if self.live:
+            self.stream.write("\r" + bar.ljust(78))
+        else:
+            self.stream.write(f"stbs demo: {bar}\n")
+        self.stream.flush()
+
+    def close(self) -> None:
+        if self.stream is not None and self.live:
+            self.stream.write("\n")
+            self.stream.flush()
+
+
+def _check_out(out: Path) -> None:
+    if out.exists() and not out.is_dir():
+        raise NotADirectoryError(20, "demo output path exists and is not a folder", str(out))
+    out.mkdir(parents=True, exist_ok=True)
+    if not os.access(out, os.W_OK | os.X_OK):
+        raise PermissionError(13, "demo output folder is not writable", str(out))
+
+
 def run_demo(out_dir: str | os.PathLike = "demo-out", quick: bool = False, *,
-             stream: TextIO | None = None, quiet: bool = False) -> DemoResult:
-    """Run the demo: stretch a cigar (Fig. 2), twist a box and a two-bone bar (Fig. 3).
+             only=None, data: bool = False, stream: TextIO | None = None,
+             progress: TextIO | None = None, quiet: bool = False) -> DemoResult:
+    """Run the demo: the paper's figures on shapes built in code, as pictures and numbers.
 
-    For each case every method of DESIGN §3 is run (lbs, dqs, stbs-lbs, stbs-dqs)
-    with projection endpoint weights (eq. 8), and one or two numbers per method are
-    measured that show the paper's point:
-
-    - cigar, stretched x2: length of the part beyond the bone's end, relative to
-      rest. LBS/DQS double it (explosion), STBS keeps it (1).
-    - box, one bone twisted 315 degrees at its far end: twist of the middle and the
-      far cross-section. STBS: mid = 157.5, far = 315. LBS/DQS have no twist
-      term, so there the bone is rotated 315 degrees about its own axis instead and
-      the box turns rigidly (mid = far = 315).
-    - bar, two bones, bent 60 degrees at the middle joint, twisted 180 degrees there
-      and the upper bone stretched x1.5 (one forward-kinematics pose for all
-      methods; LBS/DQS see the twist through the lower bone's inherited rotation):
-      the smallest cross-section near the joint relative to rest (LBS collapses to
-      about 0.35, the candy wrapper) and the twist half-way along the upper bone
-      (STBS 90: spread; LBS/DQS 0: packed at the joint).
-
-    See :mod:`stbs.demo.figures` for the computations (one function per figure).
+    Figures (keys for ``only``): fig2 cigar stretched (LBS explodes the tip, STBS
+    keeps it); fig3 a box twisted 315 degrees and a two-bone bar bent, twisted and
+    stretched (STBS spreads the twist, LBS/DQS cannot); fig4 a leg bent and stretched
+    with bone weights, point weights and STBS; fig5 (= fig1) an arm twisted, bent and
+    stretched with LBS, DQS, STBS-DQS; fig6 a character's bone and endpoint weights;
+    fig7 a 2D giraffe's neck stretched with four endpoint weights; fig8 a box twisted
+    360 degrees with heat vs BBW endpoint weights; fig10 a torso twisted with and
+    without a spline filter; fig12 a picture made in code posed by dragging joints.
+    Each figure's numbers are in ``summary.txt`` / ``summary.json`` and in the
+    gallery ``index.html`` next to its pictures.
 
     Parameters
     ----------
     out_dir : str or os.PathLike
-        Folder for the output (created, with its parents, if missing). Written:
-        ``<case>_rest.obj`` and ``<case>_<method>.obj`` for each case, plus
-        ``summary.txt`` (the table) and ``summary.json`` (the numbers). Nothing
-        is written elsewhere; every file is written atomically.
+        Output folder (created, with its parents, if missing). Written: one PNG per
+        figure panel set, a few GIF animations, ``index.html``, ``summary.txt``,
+        ``summary.json`` and OBJ meshes of Figs. 2 and 3. Nothing else is written;
+        every file is written atomically.
     quick : bool
-        Coarser meshes (for tests); the numbers are the same to printed precision.
+        Coarser meshes and fewer animation frames (under a minute).
+    only : str or list of str, optional
+        Figure keys, e.g. ``"fig2,fig5"``; default all.
+    data : bool
+        Add libigl's arm rig from ``../shared/data`` to Fig. 5 (needs the data).
     stream : text file, optional
-        Where the table is printed (default: ``sys.stdout`` at call time).
+        Where the table is printed (default ``sys.stdout``).
+    progress : text file, optional
+        Where the progress bar goes (default ``sys.stderr``; a bar on a terminal,
+        one line per figure otherwise).
     quiet : bool
         Print nothing.
 
     Returns
     -------
     DemoResult
+
+    Raises
+    ------
+    ValueError
+        For an unknown figure key.
+    OSError
+        When the output folder cannot be created or written.
     """
     from ..io import atomic_open, write_mesh
+    from .gallery import GalleryEntry, write_gallery
+    from .render import render_animation, render_panels
 
+    keys = parse_only(only)
     out = Path(os.fspath(out_dir))
-    if out.exists() and not out.is_dir():
-        raise NotADirectoryError(20, "demo output path exists and is not a folder", str(out))
-    out.mkdir(parents=True, exist_ok=True)
+    _check_out(out)
+    if data:
+        from ..io.shared_data import data_dir
+
+        arm = data_dir() / "libigl-tutorial-data" / "arm.obj"
+        if not arm.is_file():
+            raise FileNotFoundError(2, "--data needs libigl's arm rig in ../shared/data",
+                                    str(arm))
     res = DemoResult()
-    for make in FIGURES:
+    makers = [(k, f) for k in keys for f in _MAKERS[k]]
+    if data and "fig5" in keys:
+        makers.append(("fig5", paper.fig5_libigl_arm))
+    bar = _Progress(len(makers), None if quiet else (sys.stderr if progress is None
+                                                     else progress))
+    entries = []
+    for key, make in makers:
+        bar.step(f"{key}: {make.__name__}")
+        t = time.perf_counter()
         fig = make(quick)
-        res.figures[fig.name] = fig
-        path = out / f"{fig.name}_rest.obj"
-        write_mesh(path, fig.V, fig.F)
-        res.files.append(path)
-        for m, U in fig.U.items():
-            path = out / f"{fig.name}_{m}.obj"
-            write_mesh(path, U, fig.F)
+        images = []
+        for name, kw in fig.pictures.items():
+            res.files.append(render_panels(out / name, **kw))
+            images.append(name)
+        for name, kw in fig.animations.items():
+            res.files.append(render_animation(out / name, **kw))
+            images.append(name)
+        if key in ("fig2", "fig3"):
+            path = out / f"{fig.name}_rest.obj"
+            write_mesh(path, fig.V, fig.F)
             res.files.append(path)
+            for m, U in fig.U.items():
+                path = out / f"{fig.name}_{m}.obj"
+                write_mesh(path, U, fig.F)
+                res.files.append(path)
+        res.figures[fig.name] = fig
+        res.seconds[key] = res.seconds.get(key, 0.0) + time.perf_counter() - t
+        heads = [h for _, h, _ in fig.columns]
+        entries.append(GalleryEntry(
+            name=fig.name, title=fig.title, caption=fig.caption, images=images,
+            table={m: {h: fmt.format(v[k]) for k, h, fmt in fig.columns}
+                   for m, v in fig.numbers.items()},
+            columns=heads, expected={h: fig.expected[k] for k, h, _ in fig.columns}))
+        bar.done += 1
+    bar.step("done")
+    bar.close()
     res.summary = format_summary(res.figures.values())
     with atomic_open(out / "summary.txt", "w") as f:
         f.write(res.summary)
     with atomic_open(out / "summary.json", "w") as f:
-        json.dump({"quick": quick, "numbers": res.numbers,
+        json.dump({"quick": quick, "figures": keys, "numbers": res.numbers,
                    "expected": {k: fig.expected for k, fig in res.figures.items()},
-                   "notes": {k: fig.notes for k, fig in res.figures.items()}}, f, indent=2)
+                   "notes": {k: fig.notes for k, fig in res.figures.items()},
+                   "seconds": res.seconds}, f, indent=2)
         f.write("\n")
-    res.files += [out / "summary.txt", out / "summary.json"]
+    intro = ("Every picture and number on this page was computed by `stbs demo` from shapes "
+             "built in code, rigged with stbs's own weight methods.")
+    res.files += [out / "summary.txt", out / "summary.json",
+                  write_gallery(out, entries, intro=intro)]
     if not quiet:
         stream = sys.stdout if stream is None else stream
         stream.write(res.summary)

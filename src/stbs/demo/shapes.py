@@ -11,7 +11,7 @@ import numpy as np
 
 from ..skeleton import Skeleton
 
-__all__ = ["cigar", "box", "bar", "sections"]
+__all__ = ["cigar", "box", "bar", "sections", "box_tets"]
 
 
 def _positive_int(name: str, x, minimum: int = 1) -> int:
@@ -177,3 +177,45 @@ def sections(V) -> list[tuple[float, np.ndarray]]:
     V = np.asarray(V, dtype=float)
     xs, inv = np.unique(np.round(V[:, 0], 9), return_inverse=True)
     return [(float(x), np.flatnonzero(inv == k)) for k, x in enumerate(xs)]
+
+
+def box_tets(lo=(0.0, 0.0, 0.0), hi=(4.0, 1.0, 1.0), h: float = 0.25):
+    """A box as a Kuhn-subdivided voxel grid: tetrahedra and their outward surface.
+
+    Each cube of side ``h`` is split into 6 tetrahedra along its main diagonal, so
+    neighbouring cubes match (no cracks).
+
+    Returns
+    -------
+    V : (n, 3) float64
+        Grid points.
+    T : (t, 4) int64
+        Positively oriented tetrahedra.
+    F : (f, 3) int64
+        The boundary triangles, oriented outwards.
+    """
+    import itertools
+
+    lo, hi = np.asarray(lo, float), np.asarray(hi, float)
+    if not h > 0 or np.any(hi - lo < h):
+        raise ValueError(f"box_tets needs h > 0 and hi - lo >= h, got h={h}, lo={lo}, hi={hi}")
+    m = np.round((hi - lo) / h).astype(int)
+    axes = [np.linspace(lo[k], hi[k], m[k] + 1) for k in range(3)]
+    V = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
+    vid = np.arange(V.shape[0]).reshape(m + 1)
+    i, j, k = (g.ravel() for g in np.meshgrid(*[np.arange(s) for s in m], indexing="ij"))
+    corner = {c: vid[i + (c & 1), j + ((c >> 1) & 1), k + ((c >> 2) & 1)] for c in range(8)}
+    T = []
+    for perm in itertools.permutations(range(3)):      # path 0 -> ... -> 7 along the axes
+        c1 = 1 << perm[0]
+        c2 = c1 | (1 << perm[1])
+        T.append(np.stack([corner[0], corner[c1], corner[c2], corner[7]], axis=1))
+    T = np.concatenate(T).astype(np.int64)
+    X = V[T]
+    vol = np.einsum("ij,ij->i", X[:, 1] - X[:, 0], np.cross(X[:, 2] - X[:, 0], X[:, 3] - X[:, 0]))
+    T[vol < 0] = T[vol < 0][:, [1, 0, 2, 3]]
+    faces = np.concatenate([T[:, [1, 2, 3]], T[:, [0, 3, 2]], T[:, [0, 1, 3]], T[:, [0, 2, 1]]])
+    _, inv, cnt = np.unique(np.sort(faces, axis=1), axis=0, return_inverse=True,
+                            return_counts=True)
+    F = faces[cnt[inv.ravel()] == 1]
+    return V, T, F
