@@ -884,21 +884,23 @@ def _mb(x) -> str:
     return "-" if x is None else f"{x / 1e6:.1f}"
 
 
+def machine_lines(machine: dict, versions: str, what: str) -> list[str]:
+    """The report's first lines: CPU, ``versions`` (with libigl's), load at the start."""
+    lines = [f"machine: {machine.get('cpu')}, {machine.get('cpus')} CPUs; {versions}"
+             + (f", libigl {machine['libigl']}" if machine.get("libigl") else "")]
+    load = machine.get("load_average")
+    if load:
+        busy = f" (other work was running: {what} may be inflated)" if load[0] > 0.5 else ""
+        lines.append(f"load average at start: {load[0]:.2f} {load[1]:.2f} {load[2]:.2f}{busy}")
+    return lines
+
+
 def format_table(rows: Sequence[dict], machine: dict | None = None,
                  bandwidth: dict | None = None) -> str:
     """A plain-text report: timings (ours and peers), memory, targets."""
-    lines = []
-    if machine:
-        lines.append(f"machine: {machine.get('cpu')}, {machine.get('cpus')} CPUs; "
-                     f"numba {machine.get('numba_threads')} threads; "
-                     f"Python {machine.get('python')}, NumPy {machine.get('numpy')}, "
-                     f"numba {machine.get('numba')}"
-                     + (f", libigl {machine['libigl']}" if machine.get("libigl") else ""))
-        load = machine.get("load_average")
-        if load:
-            busy = " (other work was running: figures may be inflated)" if load[0] > 0.5 else ""
-            lines.append(f"load average at start: {load[0]:.2f} {load[1]:.2f} "
-                         f"{load[2]:.2f}{busy}")
+    lines = machine_lines(machine, f"numba {machine.get('numba_threads')} threads; "
+                          f"Python {machine.get('python')}, NumPy {machine.get('numpy')}, "
+                          f"numba {machine.get('numba')}", "figures") if machine else []
     if bandwidth:
         lines.append(f"memory bandwidth: {bandwidth['gbs']:.1f} GB/s, triad a = b + s c on "
                      f"{bandwidth['triad_threads']} threads, {bandwidth['array_bytes'] / 2**20:.0f}"

@@ -540,17 +540,11 @@ COLUMNS = ("case", "vertices", "elements", "m", "igl.bbw s", "stbs s", "speed-up
 def format_table(rows: Sequence[dict], machine: dict | None = None,
                  settings: dict | None = None) -> str:
     """A plain-text report: the comparison table, the rig stages, the goals."""
-    lines = []
-    if machine:
-        lines.append(f"machine: {machine.get('cpu')}, {machine.get('cpus')} CPUs; "
-                     f"Python {machine.get('python')}, NumPy {machine.get('numpy')}, "
-                     f"SciPy {machine.get('scipy')}"
-                     + (f", libigl {machine['libigl']}" if machine.get("libigl") else ""))
-        load = machine.get("load_average")
-        if load:
-            busy = " (other work was running: times may be inflated)" if load[0] > 0.5 else ""
-            lines.append(f"load average at start: {load[0]:.2f} {load[1]:.2f} "
-                         f"{load[2]:.2f}{busy}")
+    from .bench import machine_lines
+
+    lines = machine_lines(machine, f"Python {machine.get('python')}, NumPy "
+                          f"{machine.get('numpy')}, SciPy {machine.get('scipy')}",
+                          "times") if machine else []
     if settings:
         nmax = settings["igl_max_vertices"]
         lines.append(f"stbs tol {settings['tol']:g}; best of {settings['repeat']} run(s); "

@@ -13,6 +13,7 @@ import pytest
 pytest.importorskip("matplotlib")
 from PIL import Image  # noqa: E402  (Pillow comes with matplotlib)
 
+from rigs import icosphere  # noqa: E402
 from stbs.demo import render  # noqa: E402
 from stbs.demo.render import (  # noqa: E402
     METHOD_COLORS,
@@ -29,28 +30,6 @@ JOINT_RGB = np.array([0xE4, 0x57, 0x2E])
 
 
 # ---------------------------------------------------------------- test meshes
-def icosphere(level: int = 2) -> tuple[np.ndarray, np.ndarray]:
-    """Unit icosphere: closed, outward-oriented triangles."""
-    t = (1 + 5 ** 0.5) / 2
-    V = np.array([[-1, t, 0], [1, t, 0], [-1, -t, 0], [1, -t, 0], [0, -1, t], [0, 1, t],
-                  [0, -1, -t], [0, 1, -t], [t, 0, -1], [t, 0, 1], [-t, 0, -1], [-t, 0, 1]],
-                 float)
-    F = np.array([[0, 11, 5], [0, 5, 1], [0, 1, 7], [0, 7, 10], [0, 10, 11], [1, 5, 9],
-                  [5, 11, 4], [11, 10, 2], [10, 7, 6], [7, 1, 8], [3, 9, 4], [3, 4, 2],
-                  [3, 2, 6], [3, 6, 8], [3, 8, 9], [4, 9, 5], [2, 4, 11], [6, 2, 10],
-                  [8, 6, 7], [9, 8, 1]])
-    V /= np.linalg.norm(V, axis=1, keepdims=True)
-    for _ in range(level):
-        E = np.sort(np.vstack([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]]), axis=1)
-        E, inv = np.unique(E, axis=0, return_inverse=True)
-        mid = V[E].mean(axis=1)
-        mid /= np.linalg.norm(mid, axis=1, keepdims=True)
-        m = inv.reshape(3, -1).T + len(V)   # midpoints of edges 01, 12, 20
-        a, b, c = F.T
-        F = np.vstack([np.stack([a, m[:, 0], m[:, 2]], 1), np.stack([b, m[:, 1], m[:, 0]], 1),
-                       np.stack([c, m[:, 2], m[:, 1]], 1), m])
-        V = np.vstack([V, mid])
-    return V, F
 
 
 def grid2d(nx: int, ny: int) -> tuple[np.ndarray, np.ndarray]:

@@ -7,6 +7,7 @@ import itertools
 import numpy as np
 import pytest
 
+from rigs import icosphere  # noqa: F401  (re-exported for the meshing tests)
 from stbs.meshing import _optional, boundary_loops
 from stbs.meshing._geometry import (
     orient2d,
@@ -165,25 +166,3 @@ def extrude(P2: np.ndarray, F2: np.ndarray, height: float) -> tuple[np.ndarray, 
     return V, np.vstack(F)
 
 
-def icosphere(level: int = 2, radius: float = 1.0, center=(0.0, 0.0, 0.0)):
-    """A subdivided icosahedron, outward-facing."""
-    t = (1 + 5 ** 0.5) / 2
-    V = np.array([[-1, t, 0], [1, t, 0], [-1, -t, 0], [1, -t, 0], [0, -1, t], [0, 1, t],
-                  [0, -1, -t], [0, 1, -t], [t, 0, -1], [t, 0, 1], [-t, 0, -1], [-t, 0, 1]],
-                 float)
-    F = np.array([[0, 11, 5], [0, 5, 1], [0, 1, 7], [0, 7, 10], [0, 10, 11], [1, 5, 9],
-                  [5, 11, 4], [11, 10, 2], [10, 7, 6], [7, 1, 8], [3, 9, 4], [3, 4, 2],
-                  [3, 2, 6], [3, 6, 8], [3, 8, 9], [4, 9, 5], [2, 4, 11], [6, 2, 10],
-                  [8, 6, 7], [9, 8, 1]])
-    for _ in range(level):
-        E = np.sort(np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]]), axis=1)
-        E, inv = np.unique(E, axis=0, return_inverse=True)
-        inv = inv.ravel()
-        mid = V.shape[0] + inv.reshape(3, -1).T  # midpoints of edges 01, 12, 20
-        V = np.vstack([V, (V[E[:, 0]] + V[E[:, 1]]) / 2])
-        a, b, c = F.T
-        ab, bc, ca = mid.T
-        F = np.concatenate([np.stack(x, axis=1) for x in
-                            ((a, ab, ca), (ab, b, bc), (ca, bc, c), (ab, bc, ca))])
-    V = V / np.linalg.norm(V, axis=1, keepdims=True)
-    return np.asarray(center) + radius * V, F

@@ -25,7 +25,6 @@ __all__ = ["fig4_leg", "fig5_arm", "fig6_character", "fig7_neck", "fig8_box_twis
            "fig10_torso", "fig12_picture", "rigid_distortion", "hull_volume"]
 
 SKIN = "#e8b89a"
-SIDE = Camera(azimuth=-90.0, elevation=10.0)     # looking along -z... see Camera docs
 
 
 # ---------------------------------------------------------------------- measures
