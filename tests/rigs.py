@@ -78,3 +78,26 @@ def icosphere(level: int = 2, radius: float = 1.0, center=(0.0, 0.0, 0.0)):
                             ((a, ab, ca), (ab, b, bc), (ca, bc, c), (ab, bc, ca))])
     V = V / np.linalg.norm(V, axis=1, keepdims=True)
     return np.asarray(center) + radius * V, F
+
+
+def u_shape():
+    """A U (3 x 3 square without the notch [1, 2] x [1, 3]), grid spacing 0.1.
+
+    Bones: the base (0.5, 0.5) -> (2.5, 0.5) and one up each arm; every bone runs along
+    grid lines, so the mesh holds samples of all of them.
+    """
+    n = 30
+    I, J = np.meshgrid(np.arange(n + 1), np.arange(n + 1), indexing="ij")
+    V = np.c_[I.ravel(), J.ravel()] / 10
+    idx = np.arange(V.shape[0]).reshape(n + 1, n + 1)
+    a, b = idx[:-1, :-1].ravel(), idx[1:, :-1].ravel()
+    c, d = idx[1:, 1:].ravel(), idx[:-1, 1:].ravel()
+    centre = (V[a] + V[c]) / 2
+    keep = ~((centre[:, 0] > 1) & (centre[:, 0] < 2) & (centre[:, 1] > 1))
+    F = np.r_[np.c_[a, b, c][keep], np.c_[a, c, d][keep]]
+    used = np.unique(F)
+    remap = np.full(V.shape[0], -1)
+    remap[used] = np.arange(used.size)
+    C = np.array([[0.5, 0.5], [2.5, 0.5], [0.5, 2.7], [2.5, 2.7]])
+    BE = np.array([[0, 1], [0, 2], [1, 3]])
+    return V[used], remap[F], stbs.Skeleton(C, BE, names=["base", "left", "right"])

@@ -52,6 +52,8 @@ from scipy.sparse.csgraph import connected_components
 from .. import _checks
 from ..skeleton import Skeleton
 from ._cholesky import Factor
+from ._dense import chol_solve, delete_rows
+from ._reach import Lower, ReachGreen
 from .laplacian import cotmatrix, massmatrix
 
 __all__ = ["BBWSolver", "BBWReport", "BBWConvergenceWarning", "bbw", "bone_weights",
@@ -63,6 +65,7 @@ BONE_METHODS: tuple[str, ...] = ("bbw",)
 _BATCH = 256          # constraints added per function and round, at most
 _SOLVE_CHUNK = 512    # right-hand sides per sparse solve call (bounds memory)
 _CACHE_BYTES = 256 * 2**20   # dense K^-1 block kept on constrained vertices (all functions)
+_REACH_BYTES = 512 * 2**20   # forward solutions kept for pairing later constraints with
 _POLISH_ITER = 50     # primal active-set iterations of the fallback polish
 _REGION_MAX = 0.2     # a function whose part exceeds this share of the mesh uses the whole
 _MARGIN_RINGS = 3     # rings added around a function's cells
@@ -137,29 +140,35 @@ class BBWReport:
 # dense SPD matrix with a growing Cholesky factor (the Schur complement on S)
 # --------------------------------------------------------------------------------------
 class _Schur:
-    """The dense SPD system on the working set, ``H = (K^-1)[S, S]``, with a growing factor.
+    """The dense SPD system on the working set, ``H = (K^-1)[S, S]``, and its Cholesky factor.
 
-    Slots are appended by block Cholesky updates. A dropped constraint keeps its slot
-    ("dead") and is eliminated in :meth:`solve` through a small Schur complement, so a
-    drop costs no refactorization; a dead slot can be revived, and the factor is
-    compacted only when many slots are dead. ``meta`` holds per-slot arrays (vertex,
-    bound, function) for the caller.
+    Slots are appended by block Cholesky updates and removed by rank-one updates of
+    the factor (:mod:`._dense`), so neither costs a refactorization; slots stay
+    compact (every slot is a live constraint). ``meta`` holds per-slot arrays
+    (vertex, bound, function) for the caller.
     """
 
     def __init__(self, **meta: np.dtype):
-        self._Hbuf = self.H = np.zeros((0, 0))
-        self.R = np.zeros((0, 0))
-        self.alive = np.zeros(0, dtype=bool)
+        self._H = np.zeros((0, 0))
+        self._R = np.zeros((0, 0))
+        self.s = 0
         self.meta = {k: np.zeros(0, dtype=dt) for k, dt in meta.items()}
-        self._dead = None
 
     @property
     def size(self) -> int:
-        return self.H.shape[0]
+        return self.s
+
+    @property
+    def H(self) -> np.ndarray:
+        return self._H[:self.s, :self.s]
+
+    @property
+    def R(self) -> np.ndarray:
+        return self._R[:self.s, :self.s]
 
     def get(self, key: str) -> np.ndarray:
-        """Per-slot values of the live constraints."""
-        return self.meta[key][self.alive]
+        """Per-slot values of the constraints."""
+        return self.meta[key]
 
     def append(self, H12: np.ndarray, H22: np.ndarray, **meta: np.ndarray) -> np.ndarray:
         """Append k slots (``H12``: rows over all current slots); return which were kept.
@@ -168,7 +177,7 @@ class _Schur:
         """
         k = H22.shape[0]
         H22 = 0.5 * (H22 + H22.T)
-        R21 = (sla.solve_triangular(self.R, H12, lower=True, check_finite=False).T if self.size
+        R21 = (sla.solve_triangular(self.R, H12, lower=True, check_finite=False).T if self.s
                else np.zeros((k, 0)))
         try:
             R22 = np.linalg.cholesky(H22 - R21 @ R21.T)
@@ -183,7 +192,7 @@ class _Schur:
             for q in range(k):
                 kept = np.flatnonzero(keep)
                 h12 = np.concatenate([H12[:, q], H22[kept, q]])
-                r = (sla.solve_triangular(self.R, h12, lower=True, check_finite=False) if self.size
+                r = (sla.solve_triangular(self.R, h12, lower=True, check_finite=False) if self.s
                      else np.zeros(0))
                 d = H22[q, q] - r @ r
                 if d > 1e-20 * max(H22[q, q], 1e-300):
@@ -192,60 +201,43 @@ class _Schur:
                     keep[q] = True
         for key in self.meta:
             self.meta[key] = np.concatenate([self.meta[key], meta[key][keep]])
-        self.alive = np.concatenate([self.alive, np.ones(int(keep.sum()), dtype=bool)])
-        self._dead = None
         return keep
 
     def _grow(self, H12, H22, R21, R22):
-        s, k = self.size, H22.shape[0]
-        if s + k > self._Hbuf.shape[0]:           # H lives in a geometrically grown buffer
-            cap = max(s + k, 2 * self._Hbuf.shape[0], 64)
-            Hb = np.empty((cap, cap))
-            Hb[:s, :s] = self.H
-            self._Hbuf = Hb
-        Hb = self._Hbuf
-        Hb[:s, s:s + k], Hb[s:s + k, :s], Hb[s:s + k, s:s + k] = H12, H12.T, H22
-        self.H = Hb[:s + k, :s + k]
-        # R stays contiguous: LAPACK would copy a strided view on every solve
-        R = np.zeros((s + k, s + k))
-        R[:s, :s], R[s:, :s], R[s:, s:] = self.R, R21, R22
-        self.R = R
-
-    def revive(self, slots: np.ndarray) -> None:
-        if slots.size:
-            self.alive[slots] = True
-            self._dead = None
+        s, k = self.s, H22.shape[0]
+        if s + k > self._H.shape[0]:        # geometrically grown buffers
+            cap = max(s + k, 2 * self._H.shape[0], 64)
+            Hb, Rb = np.zeros((cap, cap)), np.zeros((cap, cap))
+            Hb[:s, :s], Rb[:s, :s] = self.H, self.R
+            self._H, self._R = Hb, Rb
+        self._H[:s, s:s + k], self._H[s:s + k, :s], self._H[s:s + k, s:s + k] = H12, H12.T, H22
+        self._R[s:s + k, :s], self._R[s:s + k, s:s + k] = R21, R22
+        self.s = s + k
 
     def drop(self, bad: np.ndarray) -> None:
-        """Kill the live constraints flagged in ``bad`` (a mask over the live ones)."""
-        self.alive[np.flatnonzero(self.alive)[bad]] = False
-        self._dead = None
-        n_dead = self.size - int(self.alive.sum())
-        if n_dead > max(32, self.size // 8):
-            keep = self.alive
-            self._Hbuf = self.H = self.H[np.ix_(keep, keep)]
-            self.R = np.linalg.cholesky(self.H) if self.H.size else np.zeros((0, 0))
-            self.meta = {k: v[keep] for k, v in self.meta.items()}
-            self.alive = np.ones(self.size, dtype=bool)
+        """Remove the constraints flagged in ``bad`` (a mask over the slots)."""
+        ks = np.flatnonzero(bad)
+        if ks.size == 0:
+            return
+        keep = ~bad
+        s, q = self.s, int(keep.sum())
+        if ks.size > max(8, s // 8):       # many: refactor the kept block
+            H = self.H[np.ix_(keep, keep)]
+            self._H[:q, :q] = H
+            self._R[:s, :s] = 0.0
+            if q:
+                self._R[:q, :q] = np.linalg.cholesky(H)
+        else:
+            delete_rows(self._R, s, ks.astype(np.int64))
+            self._H[:q, :q] = self.H[np.ix_(keep, keep)]
+        self.s = q
+        self.meta = {k: v[keep] for k, v in self.meta.items()}
 
     def solve(self, rhs: np.ndarray) -> np.ndarray:
-        """Solve ``H[live, live] sigma = rhs`` (dead slots eliminated by a Schur complement)."""
-        if not self.alive.any():
+        """Solve ``H sigma = rhs``."""
+        if self.s == 0:
             return np.zeros(0)
-        r = np.zeros(self.size)
-        r[self.alive] = rhs
-        y = sla.cho_solve((self.R, True), r, check_finite=False)
-        if self.alive.all():
-            return y
-        if self._dead is None:
-            D = np.flatnonzero(~self.alive)
-            E = np.zeros((self.size, D.size))
-            E[D, np.arange(D.size)] = 1.0
-            Y = sla.cho_solve((self.R, True), E, check_finite=False)
-            self._dead = (D, Y, sla.cho_factor(Y[D], check_finite=False))
-        D, Y, SD = self._dead
-        y = y - Y @ sla.cho_solve(SD, y[D], check_finite=False)
-        return y[self.alive]
+        return chol_solve(self._R, self.s, np.ascontiguousarray(rhs, dtype=float))
 
 
 # --------------------------------------------------------------------------------------
@@ -298,6 +290,15 @@ class _Prepared:
     backend: str
     factor_seconds: float = 0.0
     _factor: Factor | None = None
+    _lower: object = None
+
+    @property
+    def lower(self) -> Lower | None:
+        """The factor's arrays for sparse forward solves (:mod:`._reach`), or None."""
+        if self._lower is None:
+            Lp = self.factor.lower()
+            self._lower = False if Lp is None else Lower(*Lp)
+        return self._lower or None
 
     @property
     def factor(self) -> Factor:
@@ -692,11 +693,14 @@ class _Green:
     again, then cost no further solve. ``cap`` bounds the memory (vertices).
     """
 
-    def __init__(self, nu: int, cap: int | None):
+    def __init__(self, nu: int, cap: int | None, lower: Lower | None = None):
         self.pos = np.full(nu, -1, dtype=np.int64)
         self.verts = np.zeros(0, dtype=np.int64)
         self.G = np.zeros((0, 0))
         self.cap = cap
+        # Sparse forward solves on the etree give the entries without whole columns; used
+        # while every vertex here came that way and their solutions fit in memory.
+        self.reach = ReachGreen(lower) if lower is not None else None
 
     @property
     def size(self) -> int:
@@ -710,6 +714,17 @@ class _Green:
 
     def add(self, cv: np.ndarray, Y: np.ndarray) -> None:
         """Add vertices ``cv`` (not yet here) given their full columns ``Y`` (nu, k)."""
+        self.reach = None          # later vertices need whole columns too
+        self._append(cv, Y[self.verts], Y[cv])
+
+    def add_reach(self, cv: np.ndarray) -> None:
+        """Add vertices ``cv`` (not yet here) by sparse forward solves."""
+        G12, G22 = self.reach.add(cv)
+        self._append(cv, G12, G22)
+        if self.reach.nbytes > _REACH_BYTES:
+            self.reach = None
+
+    def _append(self, cv: np.ndarray, G12: np.ndarray, B: np.ndarray) -> None:
         s, k = self.size, cv.size
         if s + k > self.G.shape[0]:
             cap = max(s + k, int(1.5 * self.G.shape[0]), 64)
@@ -718,9 +733,8 @@ class _Green:
             G = np.empty((cap, cap))
             G[:s, :s] = self.G[:s, :s]
             self.G = G
-        self.G[:s, s:s + k] = Y[self.verts]
-        self.G[s:s + k, :s] = self.G[:s, s:s + k].T
-        B = Y[cv]
+        self.G[:s, s:s + k] = G12
+        self.G[s:s + k, :s] = G12.T
         self.G[s:s + k, s:s + k] = 0.5 * (B + B.T)
         self.pos[cv] = np.arange(s, s + k)
         self.verts = np.concatenate([self.verts, cv])
@@ -770,12 +784,11 @@ class _Run:
         nu, m = Xu.shape
         X = Xu.copy()
         schur = [_Schur(v=np.int64, upper=bool) for _ in range(m)]   # working set S_j
-        green = _Green(nu, max(64, int(np.sqrt(_CACHE_BYTES / 8))))
+        green = _Green(nu, max(64, int(np.sqrt(_CACHE_BYTES / 8))), self.P.lower)
         iters = np.zeros(m, dtype=np.int64)
         done = np.zeros(m, dtype=bool)
-        slot = np.full(nu, -1, dtype=np.int64)
         for _ in range(self.max_iter):
-            new, revive = {}, {}
+            new = {}
             for j in np.flatnonzero(~done):
                 x, sj = X[:, j], schur[j]
                 excl = np.zeros(nu, dtype=bool)
@@ -787,24 +800,15 @@ class _Run:
                         self.on_done(1)
                     continue
                 iters[j] += 1
-                # a dropped constraint that is violated again gets its slot back
-                slot[sj.meta["v"]] = np.arange(sj.size)
-                old = slot[cand] >= 0
-                revive[j] = slot[cand[old]]
-                sj.meta["upper"][revive[j]] = x[cand[old]] > 1.0
-                slot[sj.meta["v"]] = -1
-                new[j] = cand[~old]
+                new[j] = cand          # a dropped constraint that is violated again is new
             if not new:
                 break
-            blocks = self._columns(green, {j: c for j, c in new.items() if c.size},
-                                   {j: schur[j].meta["v"] for j in new})
+            blocks = self._columns(green, new, {j: schur[j].meta["v"] for j in new})
             rhs = np.zeros((nu, len(new)))
             for col, (j, cand) in enumerate(new.items()):
                 sj = schur[j]
-                sj.revive(revive[j])
-                if cand.size:
-                    A, s = blocks[j], sj.size
-                    sj.append(A[:s], A[s:], v=cand, upper=X[cand, j] > 1.0)
+                A, s = blocks[j], sj.size
+                sj.append(A[:s], A[s:], v=cand, upper=X[cand, j] > 1.0)
                 sig = self._multipliers(sj, Xu[:, j])
                 rhs[sj.get("v"), col] = sig
             Y = self.P.factor.solve(rhs)
@@ -830,6 +834,14 @@ class _Run:
                   if not green.has(slots[j]) or (not cache_all and not green.has(cand))}
         if direct:           # the cache is full: these functions take rows of fresh columns
             fresh = np.unique(np.concatenate([fresh] + [new[j] for j in direct]))
+        if not direct and cache_all and green.reach is not None:
+            for i in range(0, fresh.size, _SOLVE_CHUNK):
+                cv = fresh[i:i + _SOLVE_CHUNK]
+                if green.reach is None:       # its memory ran out: whole columns from here
+                    break
+                green.add_reach(cv)
+                self.n_solves += cv.size
+            fresh = fresh[green.pos[fresh] < 0]
         rows = {j: np.concatenate([slots[j], new[j]]) for j in direct}
         blocks = {j: np.empty((rows[j].size, new[j].size)) for j in direct}
         posmap = np.full(self.nu, -1, dtype=np.int64)
@@ -878,7 +890,7 @@ class _Run:
         return X, BBWReport(
             iterations=iters + n_polish, kkt_residual=res,
             n_lower=np.sum(X <= 0.0, axis=0), n_upper=np.sum(X >= 1.0, axis=0),
-            n_constraints=np.array([int(sj.alive.sum()) for sj in schur]), n_polish=n_polish,
+            n_constraints=np.array([sj.size for sj in schur]), n_polish=n_polish,
             converged=res <= self.tol, partition_of_unity=False, tol=self.tol,
             backend=self.P.factor.backend)
 
@@ -918,7 +930,7 @@ class _Run:
         """
         nu, m = Xu.shape
         X = Xu.copy()
-        green = _Green(nu, None)                  # the coupled system needs every pair
+        green = _Green(nu, None, self.P.lower)    # the coupled system needs every pair
         schur = _Schur(j=np.int64, v=np.int64)    # constraint w_j(v) = 0
         iters = 0
         for _ in range(self.max_iter):
@@ -935,17 +947,14 @@ class _Run:
             if new_v.size == 0:
                 break
             iters += 1
-            key_all = schur.meta["j"] * nu + schur.meta["v"]
-            key_new = new_j * nu + new_v
-            old = np.isin(key_new, key_all)
-            if old.any():
-                lookup = dict(zip(key_all.tolist(), range(key_all.size), strict=True))
-                schur.revive(np.array([lookup[k] for k in key_new[old].tolist()]))
-            new_j, new_v = new_j[~old], new_v[~old]
             add = np.unique(new_v)
             add = add[green.pos[add] < 0]
-            for cv_, Y in self._solve_unit(add):
-                green.add(cv_, Y)
+            if green.reach is not None and add.size:
+                green.add_reach(add)
+                self.n_solves += add.size
+            else:
+                for cv_, Y in self._solve_unit(add):
+                    green.add(cv_, Y)
             if new_v.size:
                 aj, av = schur.meta["j"], schur.meta["v"]
                 coef12 = (aj[:, None] == new_j[None, :]) - 1.0 / m
