@@ -119,14 +119,6 @@ class Factor:
             raise ValueError("matrix is not positive definite (non-positive pivot)")
         self._solve = lu.solve
 
-    def lower(self):
-        """``(L, p)`` with ``L L^T = A[p][:, p]`` (L sparse lower, CSC), or None where the
-        backend does not expose its factor (only CHOLMOD does). The factor used by
-        :meth:`solve` is left as it is (a copy is converted)."""
-        if self.backend != "cholmod":
-            return None
-        return self._f.copy().L(), self._f.P()
-
     def solve(self, B) -> np.ndarray:
         """Solve ``A X = B``.
 

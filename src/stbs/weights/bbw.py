@@ -53,7 +53,6 @@ from .. import _checks
 from ..skeleton import Skeleton
 from ._cholesky import Factor
 from ._dense import chol_solve, delete_rows
-from ._reach import Lower, ReachGreen
 from .laplacian import cotmatrix, massmatrix
 
 __all__ = ["BBWSolver", "BBWReport", "BBWConvergenceWarning", "bbw", "bone_weights",
@@ -65,7 +64,6 @@ BONE_METHODS: tuple[str, ...] = ("bbw",)
 _BATCH = 256          # constraints added per function and round, at most
 _SOLVE_CHUNK = 512    # right-hand sides per sparse solve call (bounds memory)
 _CACHE_BYTES = 256 * 2**20   # dense K^-1 block kept on constrained vertices (all functions)
-_REACH_BYTES = 512 * 2**20   # forward solutions kept for pairing later constraints with
 _POLISH_ITER = 50     # primal active-set iterations of the fallback polish
 _REGION_MAX = 0.2     # a function whose part exceeds this share of the mesh uses the whole
 _MARGIN_RINGS = 3     # rings added around a function's cells
@@ -140,7 +138,7 @@ class BBWReport:
 # dense SPD matrix with a growing Cholesky factor (the Schur complement on S)
 # --------------------------------------------------------------------------------------
 class _Schur:
-    """The dense SPD system on the working set, ``H = (K^-1)[S, S]``, and its Cholesky factor.
+    """The dense SPD system on the working set, ``H = (K^-1)[S, S]``, by its Cholesky factor.
 
     Slots are appended by block Cholesky updates and removed by rank-one updates of
     the factor (:mod:`._dense`), so neither costs a refactorization; slots stay
@@ -149,18 +147,13 @@ class _Schur:
     """
 
     def __init__(self, **meta: np.dtype):
-        self._H = np.zeros((0, 0))
-        self._R = np.zeros((0, 0))
+        self._R = np.zeros((0, 0))           # a buffer; the factor is its leading block
         self.s = 0
         self.meta = {k: np.zeros(0, dtype=dt) for k, dt in meta.items()}
 
     @property
     def size(self) -> int:
         return self.s
-
-    @property
-    def H(self) -> np.ndarray:
-        return self._H[:self.s, :self.s]
 
     @property
     def R(self) -> np.ndarray:
@@ -205,12 +198,11 @@ class _Schur:
 
     def _grow(self, H12, H22, R21, R22):
         s, k = self.s, H22.shape[0]
-        if s + k > self._H.shape[0]:        # geometrically grown buffers
-            cap = max(s + k, 2 * self._H.shape[0], 64)
-            Hb, Rb = np.zeros((cap, cap)), np.zeros((cap, cap))
-            Hb[:s, :s], Rb[:s, :s] = self.H, self.R
-            self._H, self._R = Hb, Rb
-        self._H[:s, s:s + k], self._H[s:s + k, :s], self._H[s:s + k, s:s + k] = H12, H12.T, H22
+        if s + k > self._R.shape[0]:        # a geometrically grown buffer
+            cap = max(s + k, 2 * self._R.shape[0], 64)
+            Rb = np.zeros((cap, cap))
+            Rb[:s, :s] = self.R
+            self._R = Rb
         self._R[s:s + k, :s], self._R[s:s + k, s:s + k] = R21, R22
         self.s = s + k
 
@@ -221,15 +213,14 @@ class _Schur:
             return
         keep = ~bad
         s, q = self.s, int(keep.sum())
-        if ks.size > max(8, s // 8):       # many: refactor the kept block
-            H = self.H[np.ix_(keep, keep)]
-            self._H[:q, :q] = H
+        if ks.size > max(8, s // 8):       # many: refactor the kept block of H = R R^T
+            Rk = self.R[keep]
+            H = Rk @ Rk.T
             self._R[:s, :s] = 0.0
             if q:
                 self._R[:q, :q] = np.linalg.cholesky(H)
         else:
             delete_rows(self._R, s, ks.astype(np.int64))
-            self._H[:q, :q] = self.H[np.ix_(keep, keep)]
         self.s = q
         self.meta = {k: v[keep] for k, v in self.meta.items()}
 
@@ -290,15 +281,6 @@ class _Prepared:
     backend: str
     factor_seconds: float = 0.0
     _factor: Factor | None = None
-    _lower: object = None
-
-    @property
-    def lower(self) -> Lower | None:
-        """The factor's arrays for sparse forward solves (:mod:`._reach`), or None."""
-        if self._lower is None:
-            Lp = self.factor.lower()
-            self._lower = False if Lp is None else Lower(*Lp)
-        return self._lower or None
 
     @property
     def factor(self) -> Factor:
@@ -693,14 +675,11 @@ class _Green:
     again, then cost no further solve. ``cap`` bounds the memory (vertices).
     """
 
-    def __init__(self, nu: int, cap: int | None, lower: Lower | None = None):
+    def __init__(self, nu: int, cap: int | None):
         self.pos = np.full(nu, -1, dtype=np.int64)
         self.verts = np.zeros(0, dtype=np.int64)
         self.G = np.zeros((0, 0))
         self.cap = cap
-        # Sparse forward solves on the etree give the entries without whole columns; used
-        # while every vertex here came that way and their solutions fit in memory.
-        self.reach = ReachGreen(lower) if lower is not None else None
 
     @property
     def size(self) -> int:
@@ -714,17 +693,6 @@ class _Green:
 
     def add(self, cv: np.ndarray, Y: np.ndarray) -> None:
         """Add vertices ``cv`` (not yet here) given their full columns ``Y`` (nu, k)."""
-        self.reach = None          # later vertices need whole columns too
-        self._append(cv, Y[self.verts], Y[cv])
-
-    def add_reach(self, cv: np.ndarray) -> None:
-        """Add vertices ``cv`` (not yet here) by sparse forward solves."""
-        G12, G22 = self.reach.add(cv)
-        self._append(cv, G12, G22)
-        if self.reach.nbytes > _REACH_BYTES:
-            self.reach = None
-
-    def _append(self, cv: np.ndarray, G12: np.ndarray, B: np.ndarray) -> None:
         s, k = self.size, cv.size
         if s + k > self.G.shape[0]:
             cap = max(s + k, int(1.5 * self.G.shape[0]), 64)
@@ -733,8 +701,9 @@ class _Green:
             G = np.empty((cap, cap))
             G[:s, :s] = self.G[:s, :s]
             self.G = G
-        self.G[:s, s:s + k] = G12
-        self.G[s:s + k, :s] = G12.T
+        self.G[:s, s:s + k] = Y[self.verts]
+        self.G[s:s + k, :s] = self.G[:s, s:s + k].T
+        B = Y[cv]
         self.G[s:s + k, s:s + k] = 0.5 * (B + B.T)
         self.pos[cv] = np.arange(s, s + k)
         self.verts = np.concatenate([self.verts, cv])
@@ -784,7 +753,7 @@ class _Run:
         nu, m = Xu.shape
         X = Xu.copy()
         schur = [_Schur(v=np.int64, upper=bool) for _ in range(m)]   # working set S_j
-        green = _Green(nu, max(64, int(np.sqrt(_CACHE_BYTES / 8))), self.P.lower)
+        green = _Green(nu, max(64, int(np.sqrt(_CACHE_BYTES / 8))))
         iters = np.zeros(m, dtype=np.int64)
         done = np.zeros(m, dtype=bool)
         for _ in range(self.max_iter):
@@ -834,14 +803,6 @@ class _Run:
                   if not green.has(slots[j]) or (not cache_all and not green.has(cand))}
         if direct:           # the cache is full: these functions take rows of fresh columns
             fresh = np.unique(np.concatenate([fresh] + [new[j] for j in direct]))
-        if not direct and cache_all and green.reach is not None:
-            for i in range(0, fresh.size, _SOLVE_CHUNK):
-                cv = fresh[i:i + _SOLVE_CHUNK]
-                if green.reach is None:       # its memory ran out: whole columns from here
-                    break
-                green.add_reach(cv)
-                self.n_solves += cv.size
-            fresh = fresh[green.pos[fresh] < 0]
         rows = {j: np.concatenate([slots[j], new[j]]) for j in direct}
         blocks = {j: np.empty((rows[j].size, new[j].size)) for j in direct}
         posmap = np.full(self.nu, -1, dtype=np.int64)
@@ -930,7 +891,7 @@ class _Run:
         """
         nu, m = Xu.shape
         X = Xu.copy()
-        green = _Green(nu, None, self.P.lower)    # the coupled system needs every pair
+        green = _Green(nu, None)                  # the coupled system needs every pair
         schur = _Schur(j=np.int64, v=np.int64)    # constraint w_j(v) = 0
         iters = 0
         for _ in range(self.max_iter):
@@ -949,12 +910,8 @@ class _Run:
             iters += 1
             add = np.unique(new_v)
             add = add[green.pos[add] < 0]
-            if green.reach is not None and add.size:
-                green.add_reach(add)
-                self.n_solves += add.size
-            else:
-                for cv_, Y in self._solve_unit(add):
-                    green.add(cv_, Y)
+            for cv_, Y in self._solve_unit(add):
+                green.add(cv_, Y)
             if new_v.size:
                 aj, av = schur.meta["j"], schur.meta["v"]
                 coef12 = (aj[:, None] == new_j[None, :]) - 1.0 / m
