@@ -52,7 +52,7 @@ from scipy.sparse.csgraph import connected_components
 from .. import _checks
 from ..skeleton import Skeleton
 from ._cholesky import Factor
-from ._dense import chol_solve, delete_rows
+from ._dense import chol_solve, delete_rows, refactor_without
 from .laplacian import cotmatrix, massmatrix
 
 __all__ = ["BBWSolver", "BBWReport", "BBWConvergenceWarning", "bbw", "bone_weights",
@@ -213,12 +213,8 @@ class _Schur:
             return
         keep = ~bad
         s, q = self.s, int(keep.sum())
-        if ks.size > max(8, s // 8):       # many: refactor the kept block of H = R R^T
-            Rk = self.R[keep]
-            H = Rk @ Rk.T
-            self._R[:s, :s] = 0.0
-            if q:
-                self._R[:q, :q] = np.linalg.cholesky(H)
+        if ks.size > max(8, s // 8):       # many at once: a new factorization is cheaper
+            refactor_without(self._R, s, ks)
         else:
             delete_rows(self._R, s, ks.astype(np.int64))
         self.s = q
