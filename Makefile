@@ -19,8 +19,17 @@ $(VENV)/.stamp-test: pyproject.toml | $(BIN)/python
 	$(PIP) install -e ".[test,bench,embree,triangle,tetgen,weights,demo]"
 	@touch $@
 
-install: $(VENV)/.stamp-install
-install-test: $(VENV)/.stamp-test
+# The system CHOLMOD (with OpenBLAS under it): the fastest sparse Cholesky, called
+# through ctypes (src/stbs/weights/_cholmod.py) with solves on every core. Installed
+# with apt-get when missing; without it the 'cholespy' and 'scipy' backends serve.
+$(VENV)/.stamp-syslibs: | $(BIN)/python
+	@ldconfig -p 2>/dev/null | grep -q 'libcholmod\.so' || { command -v apt-get >/dev/null && \
+	  apt-get update -qq && apt-get install -y -qq libsuitesparse-dev libopenblas0-pthread; } || \
+	  echo "note: no system CHOLMOD; BBW will use the cholespy backend (slower)"
+	@touch $@
+
+install: $(VENV)/.stamp-install $(VENV)/.stamp-syslibs
+install-test: $(VENV)/.stamp-test $(VENV)/.stamp-syslibs
 
 demo: install
 	$(BIN)/stbs demo --out $(DEMO_OUT)

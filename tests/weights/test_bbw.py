@@ -288,8 +288,9 @@ def test_cholesky_backends(backend):
 def test_cholesky_missing_backend(monkeypatch):
     import scipy.sparse as sp
 
-    from stbs.weights import _cholesky
+    from stbs.weights import _cholesky, _cholmod
 
+    monkeypatch.setattr(_cholmod, "library", lambda: None)
     monkeypatch.setattr(_cholesky, "_importable", lambda module: module == "scipy")
     assert _cholesky.available_backends() == ["scipy"]
     assert _cholesky.factorize(sp.eye(3)).backend == "scipy"

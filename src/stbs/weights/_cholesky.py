@@ -3,8 +3,11 @@
 SciPy has no sparse Cholesky. Backends, tried in this order by ``backend="auto"``:
 
 ``"cholmod"``
-    scikit-sparse's ``sksparse.cholmod`` (SuiteSparse CHOLMOD, supernodal, system
-    BLAS). The fastest where installed; needs SuiteSparse headers to build.
+    SuiteSparse CHOLMOD (supernodal, system BLAS), the fastest. The system library
+    (``libcholmod``) is called directly through ``ctypes`` where :mod:`._cholmod`
+    finds and recognises it, so that ``threads > 1`` solves several right-hand sides
+    at once on separate cores; otherwise through scikit-sparse (``sksparse.cholmod``,
+    the ``cholmod`` extra), which solves on one core.
 ``"cholespy"``
     ``cholespy`` (CHOLMOD bundled in a binary wheel, BSD-3). The ``weights`` extra
     installs it; no system packages needed.
@@ -39,9 +42,17 @@ def _importable(module: str) -> bool:
         return False
 
 
+def _available(backend: str) -> bool:
+    if backend == "cholmod":
+        from . import _cholmod
+
+        return _cholmod.library() is not None or _importable("sksparse")
+    return _importable(_MODULE[backend])
+
+
 def available_backends() -> list[str]:
-    """The concrete backends importable here, fastest first."""
-    return [b for b in _ORDER if _importable(_MODULE[b])]
+    """The concrete backends usable here, fastest first."""
+    return [b for b in _ORDER if _available(b)]
 
 
 class Factor:
@@ -53,9 +64,13 @@ class Factor:
         The concrete backend used.
     n : int
         Size of ``A``.
+    threads : int
+        Threads a multi-column :meth:`solve` may use (the ``"cholmod"`` backend through
+        ctypes only; the others solve on the calling thread).
     """
 
-    def __init__(self, A, backend: Literal["auto", "cholmod", "cholespy", "scipy"] = "auto"):
+    def __init__(self, A, backend: Literal["auto", "cholmod", "cholespy", "scipy"] = "auto",
+                 threads: int = 1):
         if backend not in BACKENDS:
             raise ValueError(f"backend must be one of {', '.join(map(repr, BACKENDS))}, "
                              f"got {backend!r}")
@@ -65,12 +80,19 @@ class Factor:
         A.sum_duplicates()
         A.sort_indices()
         self.n = int(A.shape[0])
+        if int(threads) < 1:
+            raise ValueError(f"threads must be >= 1, got {threads}")
+        self.threads = int(threads)
         if backend == "auto":
             backend = available_backends()[0]
-        elif not _importable(_MODULE[backend]):
-            extra = "weights" if backend == "cholespy" else "cholmod"
+        elif not _available(backend):
+            if backend == "cholmod":
+                raise ImportError("backend 'cholmod' needs SuiteSparse's CHOLMOD library "
+                                  "(Debian: apt-get install libcholmod3 or libsuitesparse-dev) "
+                                  "or the package 'scikit-sparse': pip install "
+                                  "'stbs-skinning[cholmod]'")
             raise ImportError(f"backend {backend!r} needs the package {_MODULE[backend]!r}: "
-                              f"pip install 'stbs-skinning[{extra}]'")
+                              f"pip install 'stbs-skinning[weights]'")
         self.backend = backend
         try:
             getattr(self, f"_init_{backend}")(A)
@@ -80,6 +102,13 @@ class Factor:
 
     # -- backends ---------------------------------------------------------------------------
     def _init_cholmod(self, A):
+        from . import _cholmod
+
+        if _cholmod.library() is not None:
+            self._f = _cholmod.CholmodFactor(A, threads=self.threads)
+            self._solve = self._f.solve
+            return
+        self.threads = 1
         from sksparse.cholmod import CholmodNotPositiveDefiniteError, cholesky
 
         try:
@@ -89,6 +118,7 @@ class Factor:
         self._solve = self._f
 
     def _init_cholespy(self, A):
+        self.threads = 1
         from cholespy import CholeskySolverD, MatrixType
 
         self._f = CholeskySolverD(self.n, A.indptr.astype(np.int32), A.indices.astype(np.int32),
@@ -109,6 +139,7 @@ class Factor:
             raise ValueError("matrix is not positive definite (the factor does not solve it)")
 
     def _init_scipy(self, A):
+        self.threads = 1
         from scipy.sparse.linalg import splu
 
         # Symmetric mode: minimum degree on A + A^T and pivots from the diagonal, i.e. a
@@ -138,6 +169,7 @@ class Factor:
         return np.asarray(self._solve(B)).reshape(B.shape)
 
 
-def factorize(A, *, backend: Literal["auto", "cholmod", "cholespy", "scipy"] = "auto") -> Factor:
+def factorize(A, *, backend: Literal["auto", "cholmod", "cholespy", "scipy"] = "auto",
+              threads: int = 1) -> Factor:
     """Factor the SPD sparse matrix ``A`` with the chosen backend (see module doc)."""
-    return Factor(A, backend)
+    return Factor(A, backend, threads)

@@ -52,6 +52,7 @@ from scipy.sparse.csgraph import connected_components
 from .. import _checks
 from ..skeleton import Skeleton
 from ._cholesky import Factor
+from ._cholmod import default_threads
 from ._dense import chol_solve, delete_rows, refactor_without
 from .laplacian import cotmatrix, massmatrix
 
@@ -275,6 +276,7 @@ class _Prepared:
     b_sorted: np.ndarray
     dK: np.ndarray
     backend: str
+    threads: int = 1
     factor_seconds: float = 0.0
     _factor: Factor | None = None
 
@@ -284,7 +286,7 @@ class _Prepared:
         if self._factor is None:
             t = time.perf_counter()
             try:
-                self._factor = Factor(self.K, self.backend)
+                self._factor = Factor(self.K, self.backend, self.threads)
             except np.linalg.LinAlgError as exc:
                 raise ValueError(f"the bilaplacian restricted to the free vertices is not "
                                  f"positive definite ({exc}); is the mesh degenerate?") from exc
@@ -309,6 +311,10 @@ class BBWSolver:
         Zero-measure elements: an error, or left out (:mod:`stbs.weights.laplacian`).
     blas_threads : int or None
         BLAS threads while solving (needs ``threadpoolctl``); None leaves them alone.
+    threads : int or None
+        Threads for the many-right-hand-side sparse solves, each with ``blas_threads``
+        BLAS threads (the ``"cholmod"`` backend; the others use one). None: the cores
+        this process may use, at most 8.
 
     Attributes
     ----------
@@ -331,7 +337,7 @@ class BBWSolver:
     def __init__(self, V, E, *, backend: Literal["auto", "cholmod", "cholespy", "scipy"] = "auto",
                  mass: Literal["default", "voronoi", "barycentric"] = "default",
                  degenerate: Literal["raise", "skip"] = "raise",
-                 blas_threads: int | None = 1):
+                 blas_threads: int | None = 1, threads: int | None = None):
         V = _checks.vertices(V)
         E = _checks.index_array("E", E, ndim=2)
         if E.shape[1] not in (3, 4) or E.shape[0] == 0:
@@ -342,6 +348,9 @@ class BBWSolver:
         if blas_threads is not None and int(blas_threads) < 1:
             raise ValueError(f"blas_threads must be >= 1 or None, got {blas_threads}")
         self.blas_threads = blas_threads
+        if threads is not None and int(threads) < 1:
+            raise ValueError(f"threads must be >= 1 or None, got {threads}")
+        self.threads = default_threads() if threads is None else int(threads)
         self.n = int(V.shape[0])
         self.L = cotmatrix(V, E, degenerate=degenerate)
         self.M = massmatrix(V, E, mass, degenerate=degenerate)
@@ -416,7 +425,8 @@ class BBWSolver:
         QU = self.Q[U]
         K = sp.csr_array(QU[:, U])
         QUb = sp.csr_array(QU[:, b])
-        self._prepared = _Prepared(key, U, K, QUb, b, K.diagonal(), self.backend)
+        self._prepared = _Prepared(key, U, K, QUb, b, K.diagonal(), self.backend,
+                                    self.threads)
         return self._prepared
 
     # ----------------------------------------------------------------------------------
@@ -623,7 +633,8 @@ class BBWSolver:
                 return None
             R = np.flatnonzero(mask)
             K = sp.csr_array(P.K[R][:, R])
-            Pr = _Prepared(b"", P.U[R], K, None, P.b_sorted, K.diagonal(), self.backend)
+            Pr = _Prepared(b"", P.U[R], K, None, P.b_sorted, K.diagonal(), self.backend,
+                           self.threads)
             cr = c[R][:, None]
             run = _Run(self, Pr, tol, max_iter)
             xu = -Pr.factor.solve(cr)
@@ -723,7 +734,7 @@ class _Run:
         """Yield (chunk vertices, K^-1 E_chunk) for unit right-hand sides at ``verts``."""
         for i in range(0, verts.size, _SOLVE_CHUNK):
             cv = verts[i:i + _SOLVE_CHUNK]
-            E = np.zeros((self.nu, cv.size))
+            E = np.zeros((self.nu, cv.size), order="F")     # CHOLMOD's layout: no copy
             E[cv, np.arange(cv.size)] = 1.0
             self.n_solves += cv.size
             yield cv, self.P.factor.solve(E)
@@ -769,7 +780,7 @@ class _Run:
             if not new:
                 break
             blocks = self._columns(green, new, {j: schur[j].meta["v"] for j in new})
-            rhs = np.zeros((nu, len(new)))
+            rhs = np.zeros((nu, len(new)), order="F")
             for col, (j, cand) in enumerate(new.items()):
                 sj = schur[j]
                 A, s = blocks[j], sj.size
