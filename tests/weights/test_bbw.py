@@ -121,6 +121,10 @@ def test_backends_agree(u_case, backend):
     V, F, sk, b, bc, solver, W, rep = u_case
     Wb = BBWSolver(V, F, backend=backend).solve(b, bc)
     np.testing.assert_allclose(Wb, W, atol=1e-9)
+    # the column solves split over threads (cholmod through ctypes) give the same answer
+    for threads in (1, 3):
+        Wt = BBWSolver(V, F, backend=backend, threads=threads).solve(b, bc)
+        np.testing.assert_allclose(Wt, W, atol=1e-9)
 
 
 def test_one_shot_and_single_function(u_case):
@@ -201,6 +205,8 @@ def test_bad_solver_input():
         BBWSolver(V, F[:, :2])
     with pytest.raises(ValueError, match="backend must be one of"):
         BBWSolver(V, F, backend="mkl")
+    with pytest.raises(ValueError, match="threads must be >= 1 or None, got 0"):
+        BBWSolver(V, F, threads=0)
 
 
 # -- bone_weights --------------------------------------------------------------------------
@@ -325,8 +331,12 @@ def strip_chain(bones=10):
     return V, F, stbs.Skeleton(C, BE)
 
 
-def test_parts_give_the_whole_mesh_answer(monkeypatch):
+@pytest.mark.parametrize("threads", [1, 2])
+def test_parts_give_the_whole_mesh_answer(monkeypatch, threads):
     import importlib
+    import threading
+
+    from stbs.weights import _cholmod
 
     mod = importlib.import_module("stbs.weights.bbw")
 
@@ -337,12 +347,15 @@ def test_parts_give_the_whole_mesh_answer(monkeypatch):
     monkeypatch.setattr(mod, "_REGION_MAX", 0.5)      # each part is about 0.35 here
     calls = []
     orig = BBWSolver._solve_in_region
-    monkeypatch.setattr(BBWSolver, "_solve_in_region",
-                        lambda self, *a: calls.append(1) or orig(self, *a))
+    monkeypatch.setattr(BBWSolver, "_solve_in_region", lambda self, *a: calls.append(
+        threading.current_thread().name) or orig(self, *a))
     seen = []
-    solver = BBWSolver(V, F)
+    solver = BBWSolver(V, F, threads=threads)
     W = solver.solve(b, bc, progress=lambda done, total: seen.append((done, total)))
     assert len(calls) >= 6                  # the inner bones' parts are small
+    # with threads (and CHOLMOD through ctypes) the parts are solved on worker threads
+    parallel = threads > 1 and _cholmod.library() is not None
+    assert all(name.startswith("stbs-bbw") == parallel for name in calls)
     np.testing.assert_allclose(W, W0, atol=1e-7)
     assert solver.last_report.all_converged
     assert kkt_box(solver.Q, W, b, 1e-8) is None
@@ -361,7 +374,7 @@ def test_parts_give_the_whole_mesh_answer(monkeypatch):
         return [None if mk is None else (lab == j) for j, mk in enumerate(masks)]
 
     monkeypatch.setattr(BBWSolver, "_regions", own_cell_only)
-    W2 = BBWSolver(V, F).solve(b, bc)
+    W2 = BBWSolver(V, F, threads=threads).solve(b, bc)
     assert grows
     np.testing.assert_allclose(W2, W0, atol=1e-7)
 

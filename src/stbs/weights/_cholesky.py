@@ -67,6 +67,9 @@ class Factor:
     threads : int
         Threads a multi-column :meth:`solve` may use (the ``"cholmod"`` backend through
         ctypes only; the others solve on the calling thread).
+    parallel : bool
+        Whether solves run outside Python's global interpreter lock (the ``"cholmod"``
+        backend through ctypes), so that threads calling :meth:`solve` run at once.
     """
 
     def __init__(self, A, backend: Literal["auto", "cholmod", "cholespy", "scipy"] = "auto",
@@ -83,6 +86,7 @@ class Factor:
         if int(threads) < 1:
             raise ValueError(f"threads must be >= 1, got {threads}")
         self.threads = int(threads)
+        self.parallel = False
         if backend == "auto":
             backend = available_backends()[0]
         elif not _available(backend):
@@ -107,6 +111,7 @@ class Factor:
         if _cholmod.library() is not None:
             self._f = _cholmod.CholmodFactor(A, threads=self.threads)
             self._solve = self._f.solve
+            self.parallel = True
             return
         self.threads = 1
         from sksparse.cholmod import CholmodNotPositiveDefiniteError, cholesky
@@ -150,12 +155,15 @@ class Factor:
             raise ValueError("matrix is not positive definite (non-positive pivot)")
         self._solve = lu.solve
 
-    def solve(self, B) -> np.ndarray:
+    def solve(self, B, threads: int | None = None) -> np.ndarray:
         """Solve ``A X = B``.
 
         Parameters
         ----------
         B : (n,) or (n, k) float
+        threads : int, optional
+            Threads for this solve (default :attr:`threads`); any thread may call
+            :meth:`solve` while others do.
 
         Returns
         -------
@@ -166,6 +174,8 @@ class Factor:
             raise ValueError(f"B must have shape ({self.n},) or ({self.n}, k), got {B.shape}")
         if B.ndim == 2 and B.shape[1] == 0:
             return np.zeros_like(B)
+        if self.parallel:
+            return np.asarray(self._f.solve(B, threads)).reshape(B.shape)
         return np.asarray(self._solve(B)).reshape(B.shape)
 
 

@@ -127,10 +127,11 @@ def _common(lib):
     return buf
 
 
-def _release(lib, L, commons) -> None:
+def _release(lib, L, commons: list) -> None:
     handle = c_void_p(L)
-    lib.cholmod_l_free_factor(byref(handle), commons[0])
-    for c in commons:
+    c0 = _common(lib)
+    lib.cholmod_l_free_factor(byref(handle), c0)
+    for c in commons + [c0]:
         lib.cholmod_l_finish(c)
 
 
@@ -153,6 +154,9 @@ class CholmodFactor:
     threads : int
         Worker threads for multi-column solves (1: the calling thread only).
 
+    Any number of threads may call :meth:`solve` at once: each thread has its own
+    ``cholmod_common``.
+
     Raises
     ------
     ValueError
@@ -174,12 +178,11 @@ class CholmodFactor:
         sA = _Sparse(self.n, self.n, A.nnz, ip.ctypes.data, ii.ctypes.data, None,
                      x.ctypes.data, None, 1, _CHOLMOD_LONG, _CHOLMOD_REAL, _CHOLMOD_DOUBLE,
                      1, 1)
-        self._commons = [_common(lib) for _ in range(self.threads)]
-        c0 = self._commons[0]
+        self._commons: list = []           # one per thread that has solved; freed with L
+        self._local = threading.local()
+        c0 = self._common()
         L = lib.cholmod_l_analyze(byref(sA), c0)
         if not L:
-            for c in self._commons:
-                lib.cholmod_l_finish(c)
             raise MemoryError("CHOLMOD could not analyse the matrix (out of memory?)")
         self._L = L
         self._fin = weakref.finalize(self, _release, lib, L, self._commons)
@@ -189,7 +192,17 @@ class CholmodFactor:
             raise ValueError(f"matrix is not positive definite (CHOLMOD stopped at column "
                              f"{minor} of {self.n})")
 
-    def _solve_into(self, B: np.ndarray, out: np.ndarray, common) -> None:
+    def _common(self):
+        c = getattr(self._local, "common", None)
+        if c is None:
+            c = _common(self._lib)
+            with _LOCK:
+                self._commons.append(c)
+            self._local.common = c
+        return c
+
+    def _solve_into(self, B: np.ndarray, out: np.ndarray) -> None:
+        common = self._common()
         n, k = B.shape
         d = _Dense(n, k, n * k, n, B.ctypes.data, None, _CHOLMOD_REAL, _CHOLMOD_DOUBLE)
         X = self._lib.cholmod_l_solve(_CHOLMOD_A, self._L, byref(d), common)
@@ -201,21 +214,22 @@ class CholmodFactor:
         finally:
             self._lib.cholmod_l_free_dense(byref(X), common)
 
-    def solve(self, B: np.ndarray) -> np.ndarray:
-        """Solve ``A X = B`` for B (n,) or (n, k)."""
+    def solve(self, B: np.ndarray, threads: int | None = None) -> np.ndarray:
+        """Solve ``A X = B`` for B (n,) or (n, k), on ``threads`` threads (None: as built)."""
         B = np.asarray(B, dtype=np.float64)
         vec = B.ndim == 1
         B2 = np.asfortranarray(B[:, None] if vec else B)
         k = B2.shape[1]
         out = np.empty((self.n, k), order="F")
-        parts = min(self.threads, k // _MIN_COLS)
+        threads = self.threads if threads is None else max(1, int(threads))
+        parts = min(threads, k // _MIN_COLS)
         if parts <= 1:
-            self._solve_into(B2, out, self._commons[0])
+            self._solve_into(B2, out)
         else:
             cuts = np.linspace(0, k, parts + 1).astype(int)
-            jobs = [(B2[:, lo:hi], out[:, lo:hi], self._commons[t])
-                    for t, (lo, hi) in enumerate(zip(cuts[:-1], cuts[1:], strict=True))]
-            futures = [_pool(self.threads).submit(self._solve_into, *job) for job in jobs[1:]]
+            jobs = [(B2[:, lo:hi], out[:, lo:hi])
+                    for lo, hi in zip(cuts[:-1], cuts[1:], strict=True)]
+            futures = [_pool(threads).submit(self._solve_into, *job) for job in jobs[1:]]
             self._solve_into(*jobs[0])
             for f in futures:
                 f.result()

@@ -38,9 +38,11 @@ units); a function that misses ``tol`` is finished by a primal active-set
 from __future__ import annotations
 
 import contextlib
+import threading
 import time
 import warnings
 from collections.abc import Callable
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from typing import Literal
 
@@ -279,10 +281,15 @@ class _Prepared:
     threads: int = 1
     factor_seconds: float = 0.0
     _factor: Factor | None = None
+    _lock: threading.Lock = field(default_factory=threading.Lock)
 
     @property
     def factor(self) -> Factor:
         """Sparse Cholesky factor of K, computed on first use (regions may not need it)."""
+        with self._lock:
+            return self._make_factor()
+
+    def _make_factor(self) -> Factor:
         if self._factor is None:
             t = time.perf_counter()
             try:
@@ -533,46 +540,74 @@ class BBWSolver:
         stats = {k: np.zeros(m, dtype=dt) for k, dt in (
             ("iterations", np.int64), ("kkt_residual", float), ("n_constraints", np.int64),
             ("n_polish", np.int64))}
-        n_solves, t_region, done = 0, 0.0, 0
+        totals = {"n_solves": 0, "t_region": 0.0, "done": 0}
+        lock = threading.Lock()
 
         def tick(k: int) -> None:
-            nonlocal done
-            done += k
-            if progress is not None and k:
-                progress(done, m)
+            with lock:
+                totals["done"] += k
+                if progress is not None and k:
+                    progress(totals["done"], m)
 
-        def keep(cols, x, rep):
+        def keep(cols, x, rep, n_solves=0, t_region=0.0):
             X[:, cols] = x
             for k in stats:
                 stats[k][cols] = getattr(rep, k)
+            with lock:
+                totals["n_solves"] += n_solves
+                totals["t_region"] += t_region
+
+        def region(j, threads=None) -> bool:
+            out = self._solve_in_region(P, C[:, j], masks[j], tol, max_iter, threads)
+            if out is None:                 # the part kept growing: solve on the whole
+                return False
+            x, rep, ns, tf = out
+            keep([j], x[:, None], rep, ns, tf)
+            tick(1)
+            return True
+
+        def whole(cols, Xu) -> None:
+            run = _Run(self, P, tol, max_iter, on_done=tick)
+            x, rep = run.boxes(Xu, C[:, cols])
+            keep(cols, x, rep, run.n_solves)
 
         glob = [j for j in range(m) if masks[j] is None]
-        for j in range(m):
-            if masks[j] is None:
-                continue
-            out = self._solve_in_region(P, C[:, j], masks[j], tol, max_iter)
-            if out is None:                 # the part kept growing: solve on the whole
-                glob.append(j)
-                continue
-            x, rep, ns, tf = out
-            keep([j], x[:, None], rep)
-            n_solves, t_region = n_solves + ns, t_region + tf
-            tick(1)
+        parts = [j for j in range(m) if masks[j] is not None]
+        workers = self._workers(len(parts))
+        if workers > 1:
+            # Functions on parts of the mesh, each with its own factor, on separate
+            # threads (CHOLMOD through ctypes and the dense kernels release the GIL).
+            with ThreadPoolExecutor(workers, thread_name_prefix="stbs-bbw") as ex:
+                ok = [f.result() for f in [ex.submit(region, j, 1) for j in parts]]
+        else:
+            ok = [region(j) for j in parts]
+        glob += [j for j, good in zip(parts, ok, strict=True) if not good]
         if glob:
+            # Functions on the whole mesh together: one factor, and each round's new
+            # columns of all of them in one solve (split over the threads).
             glob = sorted(glob)
             Xu = -P.factor.solve(C[:, glob])
-            run = _Run(self, P, tol, max_iter, on_done=tick)
-            run.n_solves += len(glob)
-            x, rep = run.boxes(Xu, C[:, glob])
-            keep(glob, x, rep)
-            n_solves += run.n_solves
+            totals["n_solves"] += len(glob)
+            whole(glob, Xu)
         res = stats["kkt_residual"]
         return X, BBWReport(
             iterations=stats["iterations"], kkt_residual=res,
             n_lower=np.sum(X <= 0.0, axis=0), n_upper=np.sum(X >= 1.0, axis=0),
             n_constraints=stats["n_constraints"], n_polish=stats["n_polish"],
             converged=res <= tol, partition_of_unity=False, tol=tol, backend=self.backend
-            if self.backend != "auto" else _concrete_backend(), n_solves=n_solves), t_region
+            if self.backend != "auto" else _concrete_backend(),
+            n_solves=totals["n_solves"]), totals["t_region"]
+
+    def _workers(self, m: int) -> int:
+        """Threads for m independent functions: 1 unless the solves can run at once."""
+        if self.threads == 1 or m < 2:
+            return 1
+        backend = self.backend if self.backend != "auto" else _concrete_backend()
+        from . import _cholmod
+
+        if backend != "cholmod" or _cholmod.library() is None:
+            return 1
+        return min(self.threads, m)
 
     def _labels(self, P: _Prepared, bc: np.ndarray) -> np.ndarray:
         """Per vertex: the function whose handle is geodesically nearest (-1: an all-zero one)."""
@@ -624,7 +659,8 @@ class BBWSolver:
             masks.append(mask if mask.sum() <= _REGION_MAX * nu else None)
         return masks
 
-    def _solve_in_region(self, P: _Prepared, c: np.ndarray, mask: np.ndarray, tol, max_iter):
+    def _solve_in_region(self, P: _Prepared, c: np.ndarray, mask: np.ndarray, tol, max_iter,
+                         threads: int | None = None):
         """One function on ``mask`` (w = 0 outside), grown until the whole QP's KKT hold."""
         nu = P.U.size
         n_solves, t_factor = 0, 0.0
@@ -636,8 +672,8 @@ class BBWSolver:
             Pr = _Prepared(b"", P.U[R], K, None, P.b_sorted, K.diagonal(), self.backend,
                            self.threads)
             cr = c[R][:, None]
-            run = _Run(self, Pr, tol, max_iter)
-            xu = -Pr.factor.solve(cr)
+            run = _Run(self, Pr, tol, max_iter, threads=threads)
+            xu = -Pr.factor.solve(cr, threads=threads)
             run.n_solves += 1
             xr, rep = run.boxes(xu, cr)
             n_solves, t_factor = n_solves + run.n_solves, t_factor + Pr.factor_seconds
@@ -723,8 +759,9 @@ class _Run:
     """One call of :meth:`BBWSolver.solve`: the dual active-set iterations."""
 
     def __init__(self, solver: BBWSolver, P: _Prepared, tol: float, max_iter: int,
-                 on_done: Callable[[int], None] | None = None):
+                 on_done: Callable[[int], None] | None = None, threads: int | None = None):
         self.s, self.P, self.tol, self.max_iter = solver, P, tol, max_iter
+        self.threads = threads          # for the sparse solves (None: the factor's own)
         self.on_done = on_done
         self.delta = 0.25 * tol
         self.n_solves = 0
@@ -737,7 +774,7 @@ class _Run:
             E = np.zeros((self.nu, cv.size), order="F")     # CHOLMOD's layout: no copy
             E[cv, np.arange(cv.size)] = 1.0
             self.n_solves += cv.size
-            yield cv, self.P.factor.solve(E)
+            yield cv, self.P.factor.solve(E, threads=self.threads)
 
     def _candidates(self, v: np.ndarray, excluded: np.ndarray) -> np.ndarray:
         """Vertices (local ids) to constrain next: violated local maxima, largest first."""
@@ -787,7 +824,7 @@ class _Run:
                 sj.append(A[:s], A[s:], v=cand, upper=X[cand, j] > 1.0)
                 sig = self._multipliers(sj, Xu[:, j])
                 rhs[sj.get("v"), col] = sig
-            Y = self.P.factor.solve(rhs)
+            Y = self.P.factor.solve(rhs, threads=self.threads)
             self.n_solves += rhs.shape[1]
             for col, j in enumerate(new):
                 X[:, j] = Xu[:, j] + Y[:, col]
