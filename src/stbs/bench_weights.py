@@ -60,6 +60,9 @@ __all__ = ["CASES", "DEFAULT_CASES", "BACKENDS", "SPEEDUP_GOAL", "DIFF_GOAL", "R
 SPEEDUP_GOAL, DIFF_GOAL, RIG_GOAL_S = 10.0, 1e-3, 60.0
 BACKENDS: tuple[str, ...] = ("auto", "cholmod", "cholespy", "scipy")
 DEFAULT_IGL_MAX_VERTICES = 20_000
+#: stbs's KKT tolerance unless --tol says otherwise: the accuracy class of igl.bbw,
+#: which stops at a natural residual of ~5e-7 (docs/bbw.md).
+DEFAULT_TOL = 1e-6
 
 Log = Callable[[str], None]
 
@@ -385,7 +388,7 @@ def igl_bbw(V, E, b, bc, *, timeout: float | None = None) -> tuple[np.ndarray | 
 
 # --------------------------------------------------------------------------- cases
 def compare_case(P: Problem, *, functions: int = 3, backend: str = "auto", repeat: int = 1,
-                 tol: float = 1e-10, igl_max_vertices: int = DEFAULT_IGL_MAX_VERTICES,
+                 tol: float = DEFAULT_TOL, igl_max_vertices: int = DEFAULT_IGL_MAX_VERTICES,
                  igl_timeout: float | None = None, log: Log = _quiet) -> dict:
     """Time stbs's BBW and igl.bbw on ``P`` with the same ``b`` and the first
     ``functions`` columns of ``bc``; best of ``repeat`` runs each.
@@ -448,10 +451,11 @@ def compare_case(P: Problem, *, functions: int = 3, backend: str = "auto", repea
     return row
 
 
-def rig_case(P: Problem, *, repeat: int = 1, log: Log = _quiet) -> dict:
+def rig_case(P: Problem, *, repeat: int = 1, tol: float = DEFAULT_TOL,
+             log: Log = _quiet) -> dict:
     """A complete rig of ``P`` through the library, timed per stage (best total of
     ``repeat`` runs): bone weights by BBW (all bones, normalised), then endpoint
-    weights by BBW restricted to each bone's support.
+    weights by BBW restricted to each bone's support, both with KKT tolerance ``tol``.
 
     Returns
     -------
@@ -469,10 +473,10 @@ def rig_case(P: Problem, *, repeat: int = 1, log: Log = _quiet) -> dict:
             f"run {r + 1}/{repeat}")
         stages = {}
         t = time.perf_counter()
-        W = bone_weights(P.V, P.sk, method="bbw", **mesh)
+        W = bone_weights(P.V, P.sk, method="bbw", tol=tol, **mesh)
         stages["bone weights (bbw)"] = time.perf_counter() - t
         t = time.perf_counter()
-        E = endpoint_weights(P.V, P.sk, method="bbw", W=W, **mesh)
+        E = endpoint_weights(P.V, P.sk, method="bbw", W=W, tol=tol, **mesh)
         stages["endpoint weights (bbw)"] = time.perf_counter() - t
         total = sum(stages.values())
         if best is None or total < best[0]:
@@ -480,7 +484,8 @@ def rig_case(P: Problem, *, repeat: int = 1, log: Log = _quiet) -> dict:
     total, stages, W, E = best
     return {"case": P.name, "kind": "rig", "vertices": P.n, "elements": int(P.E.shape[0]),
             "element_kind": P.element_kind, "bones": P.sk.n_bones, "meshing_s": P.meshing_s,
-            "source": P.source, "repeat": int(repeat), "stages": stages, "total_s": total,
+            "source": P.source, "repeat": int(repeat), "tol": float(tol), "stages": stages,
+            "total_s": total,
             "goal_s": RIG_GOAL_S, "met": total < RIG_GOAL_S,
             "W_row_sum_error": float(np.abs(W.sum(axis=1) - 1).max()),
             "E_range": [float(E.min()), float(E.max())]}
@@ -673,8 +678,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--backend", choices=BACKENDS, default="auto",
                         help="stbs's sparse Cholesky backend in the comparison cases (default "
                              "auto); the rig case uses the library's default")
-    parser.add_argument("--tol", type=_positive_float, default=1e-10,
-                        help="stbs's KKT tolerance (default 1e-10)")
+    parser.add_argument("--tol", type=_positive_float, default=DEFAULT_TOL,
+                        help=f"stbs's KKT tolerance, comparison and rig cases (default "
+                             f"{DEFAULT_TOL:g}: libigl's own residual is ~5e-7)")
     parser.add_argument("--json", metavar="OUT.json", default=None,
                         help="also write machine, settings, rows and goals as JSON "
                              "(written to a temporary file, then renamed)")
@@ -732,7 +738,7 @@ def run(args: argparse.Namespace) -> int:
     for name in args.cases:
         P = meshes.get(name)
         if CASES[name].kind == "rig":
-            rows.append(rig_case(P, repeat=args.repeat, log=log))
+            rows.append(rig_case(P, repeat=args.repeat, tol=args.tol, log=log))
         else:
             rows.append(compare_case(P, functions=args.functions, backend=args.backend,
                                      repeat=args.repeat, tol=args.tol,

@@ -43,6 +43,8 @@ DEFAULT_THRESHOLD = 1e-7
 #: counts as lying on it (skeleton samples inserted by a mesher carry only rounding
 #: error); the same tolerance as :mod:`stbs.weights.boundary` uses for bone weights.
 ON_BONE_TOL = 1e-6
+#: KKT tolerance of the BBW solves unless one is given (BBWSolver.solve's default).
+BBW_TOL = 1e-10
 
 
 def _vertices_for(V, sk: Skeleton) -> np.ndarray:
@@ -319,7 +321,7 @@ def _on_bone(V: np.ndarray, used: np.ndarray, sk: Skeleton, i: int,
 
 
 def _solve_region(BBWSolver, V: np.ndarray, E: np.ndarray, mask: np.ndarray | None,
-                  bidx: np.ndarray, bc: np.ndarray, cache: dict):
+                  bidx: np.ndarray, bc: np.ndarray, cache: dict, tol: float = BBW_TOL):
     """BBW on the elements ``E[mask]`` (all when None) with constraints ``bidx``/``bc``.
 
     Components of the region holding no constrained vertex are dropped (their
@@ -348,13 +350,13 @@ def _solve_region(BBWSolver, V: np.ndarray, E: np.ndarray, mask: np.ndarray | No
         solver = BBWSolver(Vs, local[Es])
         if mask is None and verts.size == n:
             cache["full"] = solver
-    X = np.asarray(solver.solve(local[bidx], bc), dtype=float).reshape(Vs.shape[0], -1)
+    X = np.asarray(solver.solve(local[bidx], bc, tol=tol), dtype=float).reshape(Vs.shape[0], -1)
     return verts, np.clip(X, 0.0, 1.0)
 
 
 def bbw_endpoint(V, sk: Skeleton, *, T=None, F=None, W=None,
                  threshold: float | None = DEFAULT_THRESHOLD, joints: bool = False,
-                 progress=None) -> np.ndarray:
+                 tol: float = BBW_TOL, progress=None) -> np.ndarray:
     """Bounded biharmonic endpoint weights, solved directly or as joint weights.
 
     Parameters
@@ -377,6 +379,8 @@ def bbw_endpoint(V, sk: Skeleton, *, T=None, F=None, W=None,
         ``a_i``, ``1`` at ``b_i`` and ``t`` at every vertex on the bone (linear along
         it). True (``"bbw-joints"``): joint weights, 1 at the joint and 0 at the other
         joints, combined by eq. 7.
+    tol : float
+        KKT tolerance of each BBW solve (:meth:`stbs.weights.BBWSolver.solve`).
     progress : callable, optional
         ``progress(done, total)`` after each bone.
 
@@ -395,19 +399,19 @@ def bbw_endpoint(V, sk: Skeleton, *, T=None, F=None, W=None,
     n, b = V.shape[0], sk.n_bones
     W = _bone_weights(W, n, b)
     BBWSolver = _bbw_solver_class()
-    tol = ON_BONE_TOL * max(float(np.linalg.norm(np.ptp(V, axis=0))), 1e-300)
+    on_tol = ON_BONE_TOL * max(float(np.linalg.norm(np.ptp(V, axis=0))), 1e-300)
     E = projection(V, sk)
     restrict = W is not None and threshold is not None
     cache: dict = {}
     used = np.unique(El)     # vertices in no element cannot carry a constraint
-    jv = _joint_vertices(V, used, sk, tol, range(sk.n_joints) if joints else np.unique(sk.BE))
+    jv = _joint_vertices(V, used, sk, on_tol, range(sk.n_joints) if joints else np.unique(sk.BE))
     cand, ks = _unique_joint_vertices(jv)
     if joints and not restrict:
         # One solve for all joints on the whole mesh, then eq. 7.
         bidx = cand
         bc = np.zeros((len(bidx), sk.n_joints))
         bc[np.arange(len(bidx)), ks] = 1.0
-        verts, X = _solve_region(BBWSolver, V, El, None, bidx, bc, cache)
+        verts, X = _solve_region(BBWSolver, V, El, None, bidx, bc, cache, tol)
         J = np.zeros((n, sk.n_joints))
         J[verts] = X
         E[verts] = joints_to_endpoint(J[verts], sk)
@@ -421,7 +425,7 @@ def bbw_endpoint(V, sk: Skeleton, *, T=None, F=None, W=None,
             vals[ks == a, 0] = 1.0
             vals[ks == e, 1] = 1.0
         else:
-            on, t = _on_bone(V, used, sk, i, tol)
+            on, t = _on_bone(V, used, sk, i, on_tol)
             val = dict(zip(on.tolist(), t.tolist(), strict=True))
             val[jv[a]] = 0.0
             val[jv[e]] = 1.0
@@ -436,7 +440,7 @@ def bbw_endpoint(V, sk: Skeleton, *, T=None, F=None, W=None,
                 inside[np.unique(El[mask])] = True
                 keep = inside[bidx]
                 bidx, vals = bidx[keep], vals[keep]
-        verts, X = _solve_region(BBWSolver, V, El, mask, bidx, vals, cache)
+        verts, X = _solve_region(BBWSolver, V, El, mask, bidx, vals, cache, tol)
         E[verts, i] = X[:, 0] if not joints else 0.5 * ((1.0 - X[:, 0]) + X[:, 1])
         if progress is not None:
             progress(i + 1, b)
@@ -461,7 +465,7 @@ def endpoint_weights(V, sk: Skeleton, method: EndpointMethod = "projection", *,
                      W=None, F=None, T=None, threshold: float | None = DEFAULT_THRESHOLD,
                      alpha: float | None = None, normalize: IdwNormalization | None = None,
                      backend: _raycast.RayBackend | None = None,
-                     progress=None) -> np.ndarray:
+                     tol: float | None = None, progress=None) -> np.ndarray:
     """Endpoint weights E (n, b) by one of the paper's methods.
 
     Parameters
@@ -490,6 +494,9 @@ def endpoint_weights(V, sk: Skeleton, method: EndpointMethod = "projection", *,
         or over all joints.
     backend : {"auto", "embree", "numpy"}, optional
         ``"heat"`` only: visibility ray casting (default ``"auto"``).
+    tol : float, optional
+        ``"bbw"``/``"bbw-joints"`` only: KKT tolerance of the BBW solves (default
+        1e-10, as :meth:`stbs.weights.BBWSolver.solve`).
     progress : callable, optional
         ``progress(done, total)`` after each bone (``"bbw"``, ``"bbw-joints"``).
 
@@ -505,10 +512,12 @@ def endpoint_weights(V, sk: Skeleton, method: EndpointMethod = "projection", *,
         a missing mesh (the message says which one the method needs).
     """
     _checks.choice("method", method, ENDPOINT_METHODS)
-    for name, value, owner in (("alpha", alpha, "idw"), ("normalize", normalize, "idw"),
-                               ("backend", backend, "heat")):
-        if value is not None and method != owner:
-            raise ValueError(f"{name} applies to method={owner!r} only, got {name}={value!r} "
+    for name, value, owners in (("alpha", alpha, ("idw",)), ("normalize", normalize, ("idw",)),
+                                ("backend", backend, ("heat",)),
+                                ("tol", tol, ("bbw", "bbw-joints"))):
+        if value is not None and method not in owners:
+            which = " or ".join(f"method={o!r}" for o in owners)
+            raise ValueError(f"{name} applies to {which} only, got {name}={value!r} "
                              f"with method={method!r}")
     threshold = _threshold(threshold)
     if method == "projection":
@@ -523,4 +532,5 @@ def endpoint_weights(V, sk: Skeleton, method: EndpointMethod = "projection", *,
         return heat_endpoint(V, F, sk, W=W, threshold=threshold,
                              backend="auto" if backend is None else backend)
     return bbw_endpoint(V, sk, T=T, F=F, W=W, threshold=threshold,
-                        joints=method == "bbw-joints", progress=progress)
+                        joints=method == "bbw-joints",
+                        tol=BBW_TOL if tol is None else float(tol), progress=progress)
