@@ -53,8 +53,8 @@ from scipy.sparse.csgraph import connected_components
 
 from .. import _checks
 from ..skeleton import Skeleton
+from . import _cholmod
 from ._cholesky import Factor
-from ._cholmod import default_threads
 from ._dense import chol_solve, delete_rows, refactor_without
 from .laplacian import cotmatrix, massmatrix
 
@@ -319,9 +319,10 @@ class BBWSolver:
     blas_threads : int or None
         BLAS threads while solving (needs ``threadpoolctl``); None leaves them alone.
     threads : int or None
-        Threads for the many-right-hand-side sparse solves, each with ``blas_threads``
-        BLAS threads (the ``"cholmod"`` backend; the others use one). None: the cores
-        this process may use, at most 8.
+        Threads for the many-right-hand-side sparse solves and for the functions
+        solved on parts of the mesh, each with ``blas_threads`` BLAS threads (the
+        ``"cholmod"`` backend through ctypes; the others use one). None: the cores this
+        process may use, at most 8.
 
     Attributes
     ----------
@@ -357,7 +358,7 @@ class BBWSolver:
         self.blas_threads = blas_threads
         if threads is not None and int(threads) < 1:
             raise ValueError(f"threads must be >= 1 or None, got {threads}")
-        self.threads = default_threads() if threads is None else int(threads)
+        self.threads = _cholmod.default_threads() if threads is None else int(threads)
         self.n = int(V.shape[0])
         self.L = cotmatrix(V, E, degenerate=degenerate)
         self.M = massmatrix(V, E, mass, degenerate=degenerate)
@@ -603,8 +604,6 @@ class BBWSolver:
         if self.threads == 1 or m < 2:
             return 1
         backend = self.backend if self.backend != "auto" else _concrete_backend()
-        from . import _cholmod
-
         if backend != "cholmod" or _cholmod.library() is None:
             return 1
         return min(self.threads, m)
