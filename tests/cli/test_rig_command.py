@@ -57,6 +57,11 @@ def test_rig_3d_bbw_tetrahedralized(shared_data, tmp_path):
     (["-o", "nofolder/x.npz"], "does not exist"),
     (["-o", "x.npz", "--bone", "heat"], "needs a 3D triangle surface"),
     (["-o", "x.npz", "--bone", "magic"], "invalid choice"),
+    (["-o", "x.npz", "--tol", "0"], "--tol: expected a positive number, got 0.0"),
+    (["-o", "x.npz", "--tol", "nan"], "--tol: expected a positive number, got nan"),
+    (["-o", "x.npz", "--tol", "abc"], "invalid float value"),
+    (["-o", "x.npz", "--bone", "heat", "--endpoint", "idw", "--tol", "1e-6"],
+     "--tol applies to --bone bbw or --endpoint bbw/bbw-joints"),
 ])
 def test_rig_errors_exit_2_one_line(shared_data, tmp_path, capsys, monkeypatch, extra, match):
     monkeypatch.chdir(tmp_path)
@@ -84,6 +89,56 @@ def test_weights_recomputes_endpoint_weights_in_place(shared_data, tmp_path):
     out2 = tmp_path / "cant2.npz"
     assert main(["weights", str(rig_path), "--bone", "bbw", "-o", str(out2)]) == 0
     check_rig(out2, 200, 4)
+
+
+def test_tol_reaches_both_bbw_stages(shared_data, tmp_path, monkeypatch):
+    """--tol (default 1e-6) is the KKT tolerance of the bone and the endpoint BBW solves."""
+    import stbs.weights as weights
+
+    seen = []
+
+    def spy(fn, stage):
+        def wrapped(*a, **kw):
+            seen.append((stage, kw.get("tol")))
+            return fn(*a, **kw)
+        return wrapped
+
+    monkeypatch.setattr(weights, "bone_weights", spy(weights.bone_weights, "bone"))
+    monkeypatch.setattr(weights, "endpoint_weights", spy(weights.endpoint_weights, "end"))
+    d = shared_data / "fast_support_reduction"
+    args = [str(d / "cantilever_S.obj"), str(d / "cantilever_S.tgf")]
+    assert main(["rig", *args, "-o", str(tmp_path / "a.npz")]) == 0
+    assert seen == [("bone", 1e-6), ("end", 1e-6)]
+    seen.clear()
+    assert main(["rig", *args, "-o", str(tmp_path / "b.npz"), "--tol", "1e-10"]) == 0
+    assert seen == [("bone", 1e-10), ("end", 1e-10)]
+    seen.clear()
+    assert main(["weights", str(tmp_path / "b.npz"), "-o", str(tmp_path / "c.npz"),
+                 "--endpoint", "bbw-joints", "--tol", "1e-5"]) == 0
+    assert seen == [("end", 1e-5)]
+    seen.clear()
+    # methods that take no tolerance are not given one
+    assert main(["weights", str(tmp_path / "b.npz"), "-o", str(tmp_path / "d.npz"),
+                 "--endpoint", "idw"]) == 0
+    assert seen == [("end", None)]
+    # the default tolerance gives the exact solution's weights to well within 1e-4
+    a, b = stbs.load_rig(tmp_path / "a.npz"), stbs.load_rig(tmp_path / "b.npz")
+    assert np.abs(np.asarray(a.W) - np.asarray(b.W)).max() < 1e-4
+    assert np.abs(np.asarray(a.E) - np.asarray(b.E)).max() < 1e-4
+
+
+def test_weights_tol_without_bbw_is_an_error(shared_data, tmp_path, capsys):
+    d = shared_data / "fast_support_reduction"
+    rig_path = tmp_path / "cant.npz"
+    assert main(["rig", str(d / "cantilever_S.obj"), str(d / "cantilever_S.tgf"),
+                 "-o", str(rig_path), "--endpoint", "projection"]) == 0
+    capsys.readouterr()
+    assert main(["weights", str(rig_path), "--endpoint", "idw", "--tol", "1e-6",
+                 "-o", str(tmp_path / "x.npz")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == ["stbs weights: error: --tol applies to --bone bbw or --endpoint "
+                   "bbw/bbw-joints; got --bone keep --endpoint idw"]
+    assert not (tmp_path / "x.npz").exists()
 
 
 def test_progress_bars_on_a_terminal(capsys):

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import sys
 
-from .rig import BONE, ENDPOINT
+from .rig import BONE, ENDPOINT, add_tol_argument
 
 NAME = "weights"
 HELP = "recompute a rig's bone and/or endpoint weights; write a .npz rig"
@@ -29,14 +29,16 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="endpoint weights (default: bbw)")
     p.add_argument("--tets", default="auto", metavar="auto|FILE",
                    help="3D bbw: tetrahedralize the surface (auto) or read tets from FILE")
+    add_tol_argument(p)
 
 
 def run(args: argparse.Namespace) -> int:
     from ..io import Rig, load_rig, save_rig
     from ..weights import endpoint_weights
-    from .rig import _Stages, check_output, compute_weights
+    from .rig import _Stages, _tol_kw, check_output, compute_weights, resolve_tol
 
     out = check_output(args.output)
+    tol = resolve_tol(args.tol, args.bone, args.endpoint)
     st = _Stages()
     rig = st.run("read rig", load_rig, args.rig)
     sk = rig.skeleton
@@ -48,12 +50,12 @@ def run(args: argparse.Namespace) -> int:
         else:
             elem = dict(T=rig.T) if rig.T is not None else dict(F=rig.F)
             E = st.run(f"endpoint weights ({args.endpoint})", endpoint_weights, rig.V, sk,
-                       method=args.endpoint, W=W, **elem)
+                       method=args.endpoint, W=W, **elem, **_tol_kw(args.endpoint, tol))
         keep_T = rig.T is not None
     else:
         W, E, keep_T = compute_weights(st, rig.V, rig.F, rig.T, sk, bone=args.bone,
                                        endpoint=args.endpoint, tets=args.tets,
-                                       mesh_name=args.rig)
+                                       mesh_name=args.rig, tol=tol)
     meta = dict(rig.meta or {}, endpoint=args.endpoint)
     if args.bone != "keep":
         meta["bone"] = args.bone
