@@ -339,3 +339,41 @@ def test_hand_bbw_endpoint_weights_restricted(shared_data):
         touched[np.unique(T[(W[T, i] > 1e-3).any(axis=1)])] = True
         far = outside & ~touched
         np.testing.assert_allclose(E[far, i], P[far, i])             # projection outside
+
+
+@pytest.mark.skipif(not HAS_BBW, reason="stbs.weights.bbw not there yet")
+@pytest.mark.parametrize("restricted", [True, False])
+@pytest.mark.parametrize("method", ["bbw", "bbw-joints"])
+def test_bones_on_threads_match_one_thread(monkeypatch, restricted, method):
+    """Per-bone BBW solves on worker threads give the one-thread answer, bar by bar.
+
+    Unrestricted, every bone shares the whole-mesh solver (built once, under a lock).
+    """
+    V, T, _ = box_tets(h=0.25)
+    sk = stbs.Skeleton([[0.5, 0.5, 0.5], [1.5, 0.5, 0.5], [2.5, 0.5, 0.5], [3.5, 0.5, 0.5]],
+                       [[0, 1], [1, 2], [2, 3]])
+    t = np.clip(V[:, 0] - 0.5, 0, 3)
+    W = np.maximum(0.0, 1.0 - np.abs(t[:, None] - np.array([0.5, 1.5, 2.5])))
+    W /= W.sum(axis=1, keepdims=True)
+    kw = dict(T=T, W=W, threshold=1e-3 if restricted else None)
+    runs = {}
+    for workers in (1, 3):
+        calls = []
+        monkeypatch.setattr(ep, "_bone_workers", lambda cls, b, w=workers: min(w, b))
+        runs[workers] = stbs.endpoint_weights(V, sk, method, progress=lambda d, b:
+                                              calls.append((d, b)), **kw)
+        # unrestricted joint weights are one solve for all joints
+        one = method == "bbw-joints" and not restricted
+        assert calls == ([(3, 3)] if one else [(1, 3), (2, 3), (3, 3)])
+    np.testing.assert_allclose(runs[3], runs[1], atol=1e-9)
+    assert runs[1].min() >= 0 and runs[1].max() <= 1
+
+
+def test_bone_workers_only_for_our_solver_on_cholmod(monkeypatch):
+    from stbs.weights import _cholmod
+    from stbs.weights.bbw import BBWSolver
+
+    assert ep._bone_workers(LsqBBW, 5) == 1           # a stand-in: never threads
+    assert ep._bone_workers(BBWSolver, 1) == 1
+    monkeypatch.setattr(_cholmod, "library", lambda: None)
+    assert ep._bone_workers(BBWSolver, 5) == 1        # scikit-sparse, cholespy: hold the GIL

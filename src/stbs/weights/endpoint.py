@@ -18,7 +18,9 @@ bone weight ``W[:, i] > threshold`` (paper §3, 1e-7), when ``W`` is given.
 
 from __future__ import annotations
 
+import threading
 import warnings
+from concurrent.futures import ThreadPoolExecutor, as_completed
 from typing import Literal
 
 import numpy as np
@@ -321,11 +323,14 @@ def _on_bone(V: np.ndarray, used: np.ndarray, sk: Skeleton, i: int,
 
 
 def _solve_region(BBWSolver, V: np.ndarray, E: np.ndarray, mask: np.ndarray | None,
-                  bidx: np.ndarray, bc: np.ndarray, cache: dict, tol: float = BBW_TOL):
+                  bidx: np.ndarray, bc: np.ndarray, cache: dict, tol: float = BBW_TOL,
+                  threads: int | None = None):
     """BBW on the elements ``E[mask]`` (all when None) with constraints ``bidx``/``bc``.
 
     Components of the region holding no constrained vertex are dropped (their
     QP would be unconstrained). Returns the solved vertices and their values.
+    ``threads`` is passed to the solver when given. Several threads may call this at
+    once: the whole-mesh solver in ``cache`` is built and used under ``cache["lock"]``.
     """
     Es = E if mask is None else E[mask]
     verts = np.unique(Es)
@@ -340,18 +345,34 @@ def _solve_region(BBWSolver, V: np.ndarray, E: np.ndarray, mask: np.ndarray | No
     if not keep_v[verts].all():
         Es = Es[keep_v[Es[:, 0]]]
         verts = np.unique(Es)
-    if mask is None and verts.size == n and "full" in cache:
-        solver = cache["full"]
-        local, Vs = np.arange(n), V
-    else:
-        local = np.full(n, -1, dtype=np.int64)
-        local[verts] = np.arange(verts.size)
-        Vs = V[verts]
-        solver = BBWSolver(Vs, local[Es])
-        if mask is None and verts.size == n:
-            cache["full"] = solver
-    X = np.asarray(solver.solve(local[bidx], bc, tol=tol), dtype=float).reshape(Vs.shape[0], -1)
+    kw = {} if threads is None else {"threads": threads}
+    if mask is None and verts.size == n:
+        # the whole mesh: one solver (L, M, Q and the factor of a repeated b) for all
+        with cache.setdefault("lock", threading.Lock()):
+            if "full" not in cache:
+                cache["full"] = BBWSolver(V, Es, **kw)
+            X = cache["full"].solve(bidx, bc, tol=tol)
+        return verts, np.clip(np.asarray(X, dtype=float).reshape(n, -1), 0.0, 1.0)
+    local = np.full(n, -1, dtype=np.int64)
+    local[verts] = np.arange(verts.size)
+    solver = BBWSolver(V[verts], local[Es], **kw)
+    X = np.asarray(solver.solve(local[bidx], bc, tol=tol), dtype=float).reshape(verts.size, -1)
     return verts, np.clip(X, 0.0, 1.0)
+
+
+def _bone_workers(BBWSolver, b: int) -> int:
+    """Threads for b per-bone solves: several only with our solver on CHOLMOD via ctypes
+    (it releases Python's lock while factoring and solving); 1 otherwise."""
+    from . import _cholmod
+    from .bbw import BBWSolver as Ours
+
+    if b < 2 or BBWSolver is not Ours or _cholmod.library() is None:
+        return 1
+    from ._cholesky import available_backends
+
+    if available_backends()[0] != "cholmod":
+        return 1
+    return min(_cholmod.default_threads(), b)
 
 
 def bbw_endpoint(V, sk: Skeleton, *, T=None, F=None, W=None,
@@ -418,6 +439,7 @@ def bbw_endpoint(V, sk: Skeleton, *, T=None, F=None, W=None,
         if progress is not None:
             progress(b, b)
         return E
+    tasks = []
     for i in range(b):
         a, e = (int(k) for k in sk.BE[i])
         if joints:
@@ -440,10 +462,28 @@ def bbw_endpoint(V, sk: Skeleton, *, T=None, F=None, W=None,
                 inside[np.unique(El[mask])] = True
                 keep = inside[bidx]
                 bidx, vals = bidx[keep], vals[keep]
-        verts, X = _solve_region(BBWSolver, V, El, mask, bidx, vals, cache, tol)
+        tasks.append((i, mask, bidx, vals))
+
+    def solve(task, threads=None):
+        i, mask, bidx, vals = task
+        return (i, *_solve_region(BBWSolver, V, El, mask, bidx, vals, cache, tol, threads))
+
+    def keep(done, i, verts, X):
         E[verts, i] = X[:, 0] if not joints else 0.5 * ((1.0 - X[:, 0]) + X[:, 1])
         if progress is not None:
-            progress(i + 1, b)
+            progress(done, b)
+
+    workers = _bone_workers(BBWSolver, b)
+    if workers > 1:
+        # Bones on separate threads, one solver thread each: the per-bone regions are
+        # independent, and whole factorizations overlap better than split solves.
+        with ThreadPoolExecutor(workers, thread_name_prefix="stbs-endpoint") as ex:
+            futures = [ex.submit(solve, task, 1) for task in tasks]
+            for done, f in enumerate(as_completed(futures), 1):
+                keep(done, *f.result())
+    else:
+        for done, task in enumerate(tasks, 1):
+            keep(done, *solve(task))
     return np.clip(E, 0.0, 1.0)
 
 
