@@ -356,15 +356,34 @@ def test_bones_on_threads_match_one_thread(monkeypatch, restricted, method):
     W = np.maximum(0.0, 1.0 - np.abs(t[:, None] - np.array([0.5, 1.5, 2.5])))
     W /= W.sum(axis=1, keepdims=True)
     kw = dict(T=T, W=W, threshold=1e-3 if restricted else None)
+    from threadpoolctl import threadpool_info
+
+    from stbs.weights.bbw import BBWSolver
+
+    made = []
+
+    class Spy(BBWSolver):
+        def __init__(self, *a, **kw):
+            made.append(kw)
+            super().__init__(*a, **kw)
+
+    monkeypatch.setattr(ep, "_bbw_solver_class", lambda: Spy)
+    blas = [i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas"]
     runs = {}
     for workers in (1, 3):
         calls = []
+        made.clear()
         monkeypatch.setattr(ep, "_bone_workers", lambda cls, b, w=workers: min(w, b))
         runs[workers] = stbs.endpoint_weights(V, sk, method, progress=lambda d, b:
                                               calls.append((d, b)), **kw)
         # unrestricted joint weights are one solve for all joints
         one = method == "bbw-joints" and not restricted
         assert calls == ([(3, 3)] if one else [(1, 3), (2, 3), (3, 3)])
+        # on threads, the solvers leave BLAS alone: the pool holds one process-wide limit
+        threaded = workers > 1 and not one
+        assert made and all(("blas_threads" in kw) == threaded for kw in made)
+        assert all(kw["blas_threads"] is None for kw in made if threaded)
+    assert [i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas"] == blas
     np.testing.assert_allclose(runs[3], runs[1], atol=1e-9)
     assert runs[1].min() >= 0 and runs[1].max() <= 1
 

@@ -329,8 +329,9 @@ def _solve_region(BBWSolver, V: np.ndarray, E: np.ndarray, mask: np.ndarray | No
 
     Components of the region holding no constrained vertex are dropped (their
     QP would be unconstrained). Returns the solved vertices and their values.
-    ``threads`` is passed to the solver when given. Several threads may call this at
-    once: the whole-mesh solver in ``cache`` is built and used under ``cache["lock"]``.
+    ``threads`` is passed to the solver when given (then the caller limits the BLAS
+    threads). Several threads may call this at once: the whole-mesh solver in ``cache``
+    is built and used under ``cache["lock"]``.
     """
     Es = E if mask is None else E[mask]
     verts = np.unique(Es)
@@ -345,7 +346,9 @@ def _solve_region(BBWSolver, V: np.ndarray, E: np.ndarray, mask: np.ndarray | No
     if not keep_v[verts].all():
         Es = Es[keep_v[Es[:, 0]]]
         verts = np.unique(Es)
-    kw = {} if threads is None else {"threads": threads}
+    # With threads given, the caller holds the BLAS thread limit for all workers:
+    # threadpoolctl's limits are process-wide, so per-thread ones would undo each other.
+    kw = {} if threads is None else {"threads": threads, "blas_threads": None}
     if mask is None and verts.size == n:
         # the whole mesh: one solver (L, M, Q and the factor of a repeated b) for all
         with cache.setdefault("lock", threading.Lock()):
@@ -477,7 +480,10 @@ def bbw_endpoint(V, sk: Skeleton, *, T=None, F=None, W=None,
     if workers > 1:
         # Bones on separate threads, one solver thread each: the per-bone regions are
         # independent, and whole factorizations overlap better than split solves.
-        with ThreadPoolExecutor(workers, thread_name_prefix="stbs-endpoint") as ex:
+        from .bbw import _blas_threads
+
+        with _blas_threads(1), \
+                ThreadPoolExecutor(workers, thread_name_prefix="stbs-endpoint") as ex:
             futures = [ex.submit(solve, task, 1) for task in tasks]
             for done, f in enumerate(as_completed(futures), 1):
                 keep(done, *f.result())
