@@ -374,8 +374,8 @@ def test_bones_on_threads_match_one_thread(monkeypatch, restricted, method):
         calls = []
         made.clear()
         monkeypatch.setattr(ep, "_bone_workers", lambda cls, b, w=workers: min(w, b))
-        runs[workers] = stbs.endpoint_weights(V, sk, method, progress=lambda d, b:
-                                              calls.append((d, b)), **kw)
+        runs[workers] = stbs.endpoint_weights(V, sk, method, progress=lambda d, b, c=calls:
+                                              c.append((d, b)), **kw)
         # unrestricted joint weights are one solve for all joints
         one = method == "bbw-joints" and not restricted
         assert calls == ([(3, 3)] if one else [(1, 3), (2, 3), (3, 3)])
