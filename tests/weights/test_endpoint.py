@@ -388,6 +388,22 @@ def test_bones_on_threads_match_one_thread(monkeypatch, restricted, method):
     assert runs[1].min() >= 0 and runs[1].max() <= 1
 
 
+def test_a_failing_bone_on_a_thread_raises_its_error(monkeypatch):
+    from stbs.weights.bbw import BBWSolver
+
+    V, T, _ = box_tets(h=0.5)
+    sk = stbs.Skeleton([[0.5, 0.5, 0.5], [2.0, 0.5, 0.5], [3.5, 0.5, 0.5]], [[0, 1], [1, 2]])
+    class Failing(BBWSolver):
+        def solve(self, b, bc, **kw):
+            raise ValueError("bone region broke")
+
+    monkeypatch.setattr(ep, "_bbw_solver_class", lambda: Failing)
+    monkeypatch.setattr(ep, "_bone_workers", lambda cls, b: 2)
+    for W in (None, np.full((len(V), 2), 0.5)):      # the shared solver, and per region
+        with pytest.raises(ValueError, match="bone region broke"):
+            stbs.endpoint_weights(V, sk, "bbw", T=T, W=W)
+
+
 def test_bone_workers_only_for_our_solver_on_cholmod(monkeypatch):
     from stbs.weights import _cholmod
     from stbs.weights.bbw import BBWSolver

@@ -485,8 +485,13 @@ def bbw_endpoint(V, sk: Skeleton, *, T=None, F=None, W=None,
         with _blas_threads(1), \
                 ThreadPoolExecutor(workers, thread_name_prefix="stbs-endpoint") as ex:
             futures = [ex.submit(solve, task, 1) for task in tasks]
-            for done, f in enumerate(as_completed(futures), 1):
-                keep(done, *f.result())
+            try:
+                for done, f in enumerate(as_completed(futures), 1):
+                    keep(done, *f.result())
+            except BaseException:
+                for f in futures:      # a bone failed: start no more of them
+                    f.cancel()
+                raise
     else:
         for done, task in enumerate(tasks, 1):
             keep(done, *solve(task))
