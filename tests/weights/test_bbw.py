@@ -379,38 +379,6 @@ def test_parts_give_the_whole_mesh_answer(monkeypatch, threads):
     np.testing.assert_allclose(W2, W0, atol=1e-7)
 
 
-@pytest.mark.parametrize("threads", [1, 2])
-def test_large_mesh_functions_one_per_thread(monkeypatch, threads):
-    """Above _SPLIT_MIN unknowns the whole-mesh functions run one per worker thread."""
-    import importlib
-    import threading
-
-    from stbs.weights import _cholmod
-
-    mod = importlib.import_module("stbs.weights.bbw")
-    V, F, sk = strip_chain(6)
-    b, bc = boundary_conditions(V, sk, F=F)
-    W0 = BBWSolver(V, F, threads=1).solve(b, bc, restrict=False)
-    monkeypatch.setattr(mod, "_SPLIT_MIN", 0)           # this small mesh counts as large
-    names = []
-    orig = mod._Run.boxes
-    monkeypatch.setattr(mod._Run, "boxes", lambda self, Xu, C: names.append(
-        (threading.current_thread().name, C.shape[1], self.threads)) or orig(self, Xu, C))
-    seen = []
-    solver = BBWSolver(V, F, threads=threads)
-    W = solver.solve(b, bc, restrict=False, progress=lambda d, t: seen.append((d, t)))
-    parallel = threads > 1 and _cholmod.library() is not None
-    if parallel:        # one function per run, each on a worker thread solving alone
-        assert sorted(names) == sorted([(n, 1, 1) for n, _, _ in names])
-        assert len(names) == 6 and all(n.startswith("stbs-bbw") for n, _, _ in names)
-    else:               # all functions in one lockstep run on the calling thread
-        assert len(names) == 1 and names[0][1] == 6
-    np.testing.assert_allclose(W, W0, atol=1e-8)
-    rep = solver.last_report
-    assert rep.all_converged and rep.n_solves > 0 and len(rep.iterations) == 6
-    assert seen[-1] == (6, 6) and [d for d, _ in seen] == list(range(1, 7))
-
-
 def test_progress_must_be_callable(u_case):
     V, F, sk, b, bc, solver, W, rep = u_case
     with pytest.raises(TypeError, match="progress must be callable"):

@@ -72,12 +72,6 @@ _REGION_MAX = 0.2     # a function whose part exceeds this share of the mesh use
 _MARGIN_RINGS = 3     # rings added around a function's cells
 _GROW_RINGS = 4       # rings added around vertices where the KKT check failed
 _GROW_MAX = 4         # times a part is grown before the function is solved on the whole
-#: Unknowns from which whole-mesh functions are solved one per thread rather than
-#: together with split column solves. Measured (2 cores, tol 1e-6): on 50k tets two
-#: functions took 44.5-45.2 s one per thread against 53.6-53.7 s together; on 2D 5k,
-#: 2D 20k and 3D 10k one per thread was 15-40 % slower (smaller solve batches, no
-#: shared K^-1 entries), so the crossover lies between 20k and 50k.
-_SPLIT_MIN = 40_000
 
 
 class BBWConvergenceWarning(UserWarning):
@@ -573,8 +567,8 @@ class BBWSolver:
             tick(1)
             return True
 
-        def whole(cols, Xu, threads=None) -> None:
-            run = _Run(self, P, tol, max_iter, on_done=tick, threads=threads)
+        def whole(cols, Xu) -> None:
+            run = _Run(self, P, tol, max_iter, on_done=tick)
             x, rep = run.boxes(Xu, C[:, cols])
             keep(cols, x, rep, run.n_solves)
 
@@ -595,16 +589,7 @@ class BBWSolver:
             glob = sorted(glob)
             Xu = -P.factor.solve(C[:, glob])
             totals["n_solves"] += len(glob)
-            workers = self._workers(len(glob)) if nu >= _SPLIT_MIN else 1
-            if workers > 1:
-                # Large meshes: one function per thread, sharing the factor (read
-                # only); each thread's dense work then overlaps the others' solves.
-                with ThreadPoolExecutor(workers, thread_name_prefix="stbs-bbw") as ex:
-                    for f in [ex.submit(whole, [j], Xu[:, [k]], 1)
-                              for k, j in enumerate(glob)]:
-                        f.result()
-            else:
-                whole(glob, Xu)
+            whole(glob, Xu)
         res = stats["kkt_residual"]
         return X, BBWReport(
             iterations=stats["iterations"], kkt_residual=res,
