@@ -471,7 +471,7 @@ def bbw_endpoint(V, sk: Skeleton, *, T=None, F=None, W=None,
         i, mask, bidx, vals = task
         return (i, *_solve_region(BBWSolver, V, El, mask, bidx, vals, cache, tol, threads))
 
-    def keep(done, i, verts, X):
+    def store(done, i, verts, X):
         E[verts, i] = X[:, 0] if not joints else 0.5 * ((1.0 - X[:, 0]) + X[:, 1])
         if progress is not None:
             progress(done, b)
@@ -487,14 +487,14 @@ def bbw_endpoint(V, sk: Skeleton, *, T=None, F=None, W=None,
             futures = [ex.submit(solve, task, 1) for task in tasks]
             try:
                 for done, f in enumerate(as_completed(futures), 1):
-                    keep(done, *f.result())
+                    store(done, *f.result())
             except BaseException:
                 for f in futures:      # a bone failed: start no more of them
                     f.cancel()
                 raise
     else:
         for done, task in enumerate(tasks, 1):
-            keep(done, *solve(task))
+            store(done, *solve(task))
     return np.clip(E, 0.0, 1.0)
 
 
