@@ -32,7 +32,7 @@ EPILOG = f"""examples:
 BONE = ("bbw", "heat")
 ENDPOINT = ("bbw", "bbw-joints", "heat", "projection", "idw")
 #: KKT tolerance of the command's BBW solves: weights within about 1e-5 of the exact QP
-#: solution (measured: 2e-7 to 3e-6 on the benchmark meshes) at half the time of 1e-10
+#: solution (measured: 2e-7 to 3e-6 on the benchmark meshes), up to 1.5x faster than 1e-10
 DEFAULT_TOL = 1e-6
 
 
@@ -40,7 +40,7 @@ def add_tol_argument(p: argparse.ArgumentParser) -> None:
     p.add_argument("--tol", type=float, default=None, metavar="T",
                    help=f"KKT tolerance of the BBW solves (--bone bbw, --endpoint bbw or "
                         f"bbw-joints), in weight units (default: {DEFAULT_TOL:g}; 1e-10 "
-                        f"gives the exact QP solution, about twice as slow)")
+                        f"gives the exact QP solution, up to 1.5x slower)")
 
 
 def resolve_tol(tol: float | None, bone: str, endpoint: str) -> float:
