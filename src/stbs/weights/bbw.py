@@ -601,12 +601,7 @@ class BBWSolver:
 
     def _workers(self, m: int) -> int:
         """Threads for m independent functions: 1 unless the solves can run at once."""
-        if self.threads == 1 or m < 2:
-            return 1
-        backend = self.backend if self.backend != "auto" else _concrete_backend()
-        if backend != "cholmod" or _cholmod.library() is None:
-            return 1
-        return min(self.threads, m)
+        return parallel_workers(self.threads, m, self.backend)
 
     def _labels(self, P: _Prepared, bc: np.ndarray) -> np.ndarray:
         """Per vertex: the function whose handle is geodesically nearest (-1: an all-zero one)."""
@@ -700,6 +695,17 @@ class BBWSolver:
     def _grow(self, P: _Prepared, mask: np.ndarray, viol: np.ndarray) -> np.ndarray:
         """Add the violating vertices and their neighbourhoods to the part."""
         return mask | self._dilate(P, viol, _GROW_RINGS)
+
+
+def parallel_workers(threads: int, m: int, backend: str = "auto") -> int:
+    """Threads for m independent solves: several only on CHOLMOD through ctypes, which
+    releases Python's lock while factoring and solving; 1 otherwise."""
+    if threads == 1 or m < 2:
+        return 1
+    backend = backend if backend != "auto" else _concrete_backend()
+    if backend != "cholmod" or _cholmod.library() is None:
+        return 1
+    return min(threads, m)
 
 
 def _concrete_backend() -> str:

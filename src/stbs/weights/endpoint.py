@@ -364,18 +364,15 @@ def _solve_region(BBWSolver, V: np.ndarray, E: np.ndarray, mask: np.ndarray | No
 
 
 def _bone_workers(BBWSolver, b: int) -> int:
-    """Threads for b per-bone solves: several only with our solver on CHOLMOD via ctypes
-    (it releases Python's lock while factoring and solving); 1 otherwise."""
+    """Threads for b per-bone solves: as our solver's own (CHOLMOD through ctypes only),
+    and never for a stand-in solver class."""
     from . import _cholmod
     from .bbw import BBWSolver as Ours
+    from .bbw import parallel_workers
 
-    if b < 2 or BBWSolver is not Ours or _cholmod.library() is None:
+    if BBWSolver is not Ours:
         return 1
-    from ._cholesky import available_backends
-
-    if available_backends()[0] != "cholmod":
-        return 1
-    return min(_cholmod.default_threads(), b)
+    return parallel_workers(_cholmod.default_threads(), b)
 
 
 def bbw_endpoint(V, sk: Skeleton, *, T=None, F=None, W=None,
