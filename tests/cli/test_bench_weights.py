@@ -7,6 +7,7 @@ Nothing here asserts a speed: timing belongs in benchmarks (docs/benchmarks.md).
 from __future__ import annotations
 
 import json
+import sys
 
 import numpy as np
 import pytest
@@ -116,6 +117,29 @@ def test_kkt_residual_is_zero_at_the_solution_and_sees_a_violation(small):
     W2 = W.copy()
     W2[U[0]] += 0.1                           # off the minimiser: the residual shows it
     assert bw.kkt_residual(Q, np.clip(W2, 0, 1), b) > 1e-3
+
+
+def test_warm_up_runs_once_before_the_first_timed_solve(small, monkeypatch):
+    """The first solve in a process loads compiled kernels (~0.5 s): never timed."""
+    bbw_module = sys.modules["stbs.weights.bbw"]   # the package's ``bbw`` is the function
+    events = []
+    real = bbw_module.BBWSolver.solve
+
+    def spy(self, *a, **k):
+        events.append(("solve", self.n))
+        return real(self, *a, **k)
+
+    monkeypatch.setattr(bbw_module.BBWSolver, "solve", spy)
+    monkeypatch.setattr(bw, "_WARM", set())
+    monkeypatch.setattr(bw, "igl_available", lambda: (False, "test"))
+    bw.compare_case(small, repeat=2)
+    bw.compare_case(small, repeat=1)
+    # one warm-up solve, then the timed ones; the second case finds it warm
+    assert [e[0] for e in events] == ["solve"] * 4
+    assert bw._WARM == {("stbs", "auto")}
+    events.clear()
+    bw.warm_up("auto")
+    assert events == []
 
 
 # --------------------------------------------------------------------------- rig and goals
