@@ -92,3 +92,46 @@ def test_without_the_library_scikit_sparse_or_nothing(monkeypatch):
     assert _cholesky.available_backends() == ["scipy"]
     with pytest.raises(ImportError, match=r"libsuitesparse-dev.*stbs-skinning\[cholmod\]"):
         _cholesky.factorize(sp.eye(3), backend="cholmod")
+
+
+_FRESH = r"""
+import json, sys
+from threadpoolctl import threadpool_info
+from stbs.weights import _cholmod
+from stbs.weights.bbw import BBWSolver
+import numpy as np
+
+seen = []
+real = _cholmod.CholmodFactor.__init__
+
+def spy(self, *a, **k):   # inside BBWSolver.solve, where BLAS is held at one thread
+    seen.extend((i["filepath"], i["num_threads"]) for i in threadpool_info()
+                if i["user_api"] == "blas")
+    real(self, *a, **k)
+
+_cholmod.CholmodFactor.__init__ = spy
+k = 12
+x, y = np.meshgrid(np.arange(k), np.arange(k))
+V = np.column_stack([x.ravel(), y.ravel()]).astype(float)
+a = (np.arange(k - 1)[None, :] + k * np.arange(k - 1)[:, None]).ravel()
+F = np.concatenate([np.column_stack([a, a + 1, a + k + 1]), np.column_stack([a, a + k + 1, a + k])])
+BBWSolver(V, F, backend="cholmod").solve(np.array([0, k * k - 1]), np.eye(2))
+print(json.dumps(seen))
+"""
+
+
+@needs_lib
+def test_cholmods_own_blas_is_limited_in_a_fresh_process():
+    """threadpoolctl limits only libraries already loaded: CHOLMOD (and its BLAS) must be
+    loaded before the solve takes the limit, or its BLAS threads stay unlimited (2.5x
+    slower at 50k). Needs a fresh interpreter: here the library is loaded long ago."""
+    import json
+    import subprocess
+    import sys
+
+    pytest.importorskip("threadpoolctl")
+    out = subprocess.run([sys.executable, "-c", _FRESH], check=True, capture_output=True,
+                         text=True, timeout=120).stdout
+    seen = json.loads(out.strip().splitlines()[-1])
+    assert seen, "no BLAS library seen at the factorization"
+    assert all(n == 1 for _, n in seen), seen

@@ -65,7 +65,7 @@ __all__ = ["BBWSolver", "BBWReport", "BBWConvergenceWarning", "bbw", "bone_weigh
 BONE_METHODS: tuple[str, ...] = ("bbw",)
 
 _BATCH = 256          # constraints added per function and round, at most
-_SOLVE_CHUNK = 512    # right-hand sides per sparse solve call (bounds memory)
+_SOLVE_BYTES = 48 * 2**20   # right-hand-side block per sparse solve call (see _chunk)
 _CACHE_BYTES = 256 * 2**20   # dense K^-1 block kept on constrained vertices (all functions)
 _POLISH_ITER = 50     # primal active-set iterations of the fallback polish
 _REGION_MAX = 0.2     # a function whose part exceeds this share of the mesh uses the whole
@@ -252,6 +252,12 @@ def _blas_threads(threads: int | None):
         from threadpoolctl import threadpool_limits
     except ImportError:  # pragma: no cover - optional
         return contextlib.nullcontext()
+    # threadpoolctl limits only the BLAS libraries loaded when the limit is taken. The
+    # system CHOLMOD brings its own (e.g. libopenblas) when it is first loaded, which
+    # would otherwise happen inside the limit, at the first factorization, leaving
+    # CHOLMOD's BLAS threads unlimited: measured 2.5x slower at 50k (142 s against
+    # 56 s) in a fresh process.
+    _cholmod.library()
     return threadpool_limits(limits=threads, user_api="blas")
 
 
@@ -697,6 +703,18 @@ class BBWSolver:
         return mask | self._dilate(P, viol, _GROW_RINGS)
 
 
+def solve_chunk(nu: int) -> int:
+    """Right-hand sides per sparse solve call for ``nu`` unknowns: a block of about
+    ``_SOLVE_BYTES``, 64 to 512 columns.
+
+    Per column, CHOLMOD's multi-column solve is cheapest with the block of right-hand
+    sides near the cache sizes: at 50k unknowns (two threads) 3.5 ms with 128 columns
+    against 4.1-4.4 ms with 512, while at 10k and 20k 256-512 are best (measured,
+    ``docs/bbw.md``).
+    """
+    return int(np.clip(_SOLVE_BYTES // (8 * max(int(nu), 1)), 64, 512))
+
+
 def parallel_workers(threads: int, m: int, backend: str = "auto") -> int:
     """Threads for m independent solves: several only on CHOLMOD through ctypes, which
     releases Python's lock while factoring and solving; 1 otherwise."""
@@ -774,8 +792,9 @@ class _Run:
 
     def _solve_unit(self, verts: np.ndarray):
         """Yield (chunk vertices, K^-1 E_chunk) for unit right-hand sides at ``verts``."""
-        for i in range(0, verts.size, _SOLVE_CHUNK):
-            cv = verts[i:i + _SOLVE_CHUNK]
+        chunk = solve_chunk(self.nu)
+        for i in range(0, verts.size, chunk):
+            cv = verts[i:i + chunk]
             E = np.zeros((self.nu, cv.size), order="F")     # CHOLMOD's layout: no copy
             E[cv, np.arange(cv.size)] = 1.0
             self.n_solves += cv.size
