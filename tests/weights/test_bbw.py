@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import sys
 import warnings
 
 import numpy as np
@@ -389,8 +390,6 @@ def test_progress_must_be_callable(u_case):
 
 
 def test_solve_chunk_rule_and_small_chunks_give_the_same_answer(u_case, monkeypatch):
-    import sys
-
     mod = sys.modules["stbs.weights.bbw"]          # the package's ``bbw`` is the function
     assert mod.solve_chunk(1) == 512 and mod.solve_chunk(10**8) == 64
     sizes = [mod.solve_chunk(n) for n in (5_000, 20_000, 50_000, 200_000)]

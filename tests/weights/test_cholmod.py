@@ -95,7 +95,7 @@ def test_without_the_library_scikit_sparse_or_nothing(monkeypatch):
 
 
 _FRESH = r"""
-import json, sys
+import json
 from threadpoolctl import threadpool_info
 from stbs.weights import _cholmod
 from stbs.weights.bbw import BBWSolver

@@ -65,7 +65,7 @@ __all__ = ["BBWSolver", "BBWReport", "BBWConvergenceWarning", "bbw", "bone_weigh
 BONE_METHODS: tuple[str, ...] = ("bbw",)
 
 _BATCH = 256          # constraints added per function and round, at most
-_SOLVE_BYTES = 48 * 2**20   # right-hand-side block per sparse solve call (see _chunk)
+_SOLVE_BYTES = 48 * 2**20   # right-hand-side block per sparse solve call (solve_chunk)
 _CACHE_BYTES = 256 * 2**20   # dense K^-1 block kept on constrained vertices (all functions)
 _POLISH_ITER = 50     # primal active-set iterations of the fallback polish
 _REGION_MAX = 0.2     # a function whose part exceeds this share of the mesh uses the whole
