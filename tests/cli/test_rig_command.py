@@ -52,6 +52,24 @@ def test_rig_3d_bbw_tetrahedralized(shared_data, tmp_path):
     assert rig.F is not None and rig.T is None  # the user's surface, not our tets
 
 
+def test_rig_elephant_with_its_tips_clipped(shared_data, tmp_path, capsys):
+    # elephant.tgf's trunk and tail tips poke out of the skin by 0.05 and 0.11.
+    d = shared_data / "libigl-tutorial-data"
+    out = tmp_path / "elephant.npz"
+    args = ["rig", str(d / "elephant.obj"), str(d / "elephant.tgf"), "-o", str(out)]
+    assert main(args) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "outside the surface by 0.0452" in err[0]
+    assert "--clip-skeleton" in err[0] and not out.exists()
+    assert main([*args, "--clip-skeleton"]) == 0
+    assert "warning: tetrahedralize: 3 skeleton point(s)" in capsys.readouterr().err
+    rig = check_rig(out, 6034, 24)
+    # Against the weights shipped with the model (libigl's tutorial): same dominant
+    # bone on most of the surface (measured 0.87).
+    ref = stbs.io.read_dmat(d / "elephant-weights.dmat")
+    assert (np.argmax(rig.W, axis=1) == np.argmax(ref, axis=1)).mean() > 0.8
+
+
 @pytest.mark.parametrize("extra, match", [
     (["-o", "x.obj"], "expected a .npz rig file"),
     (["-o", "nofolder/x.npz"], "does not exist"),
@@ -62,6 +80,8 @@ def test_rig_3d_bbw_tetrahedralized(shared_data, tmp_path):
     (["-o", "x.npz", "--tol", "abc"], "invalid float value"),
     (["-o", "x.npz", "--bone", "heat", "--endpoint", "idw", "--tol", "1e-6"],
      "--tol applies to --bone bbw or --endpoint bbw/bbw-joints"),
+    (["-o", "x.npz", "--clip-skeleton"],
+     "--clip-skeleton applies when stbs tetrahedralizes a 3D surface"),
 ])
 def test_rig_errors_exit_2_one_line(shared_data, tmp_path, capsys, monkeypatch, extra, match):
     monkeypatch.chdir(tmp_path)

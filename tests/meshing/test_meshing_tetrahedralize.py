@@ -185,8 +185,15 @@ def test_elephant_skeleton_tips_outside(shared_data):
     # elephant.tgf's trunk tip sits 0.05 outside the surface.
     mesh = read_mesh(shared_data / "libigl-tutorial-data" / "elephant.obj")
     sk = read_skeleton(shared_data / "libigl-tutorial-data" / "elephant.tgf")
-    with pytest.raises(ValueError, match=r"bone 5 .*its joint 6 .* is outside the surface"):
+    with pytest.raises(ValueError, match=r"bone 5 .*its joint 6 .* is outside the surface by "
+                       r"0\.045\d "):
         tetrahedralize(mesh.V, mesh.F, sk, self_intersections=False)
+    # Meshed with the tips clipped: 3 joints left out, the rest exactly in place.
+    with pytest.warns(UserWarning, match=r"3 skeleton point\(s\) .* left out \(3 joint"):
+        m = tetrahedralize(mesh.V, mesh.F, sk, self_intersections=False, clip_skeleton=True)
+    assert np.array_equal(np.flatnonzero(m.joint_vertex < 0), [6, 19, 24])
+    kept = m.joint_vertex >= 0
+    assert np.array_equal(m.V[m.joint_vertex[kept]], sk.C[kept])
 
 
 def test_robot_arm_has_degenerate_triangles(shared_data):
@@ -291,8 +298,58 @@ def test_bone_crossing_the_surface_names_the_bone(u_prism):
 def test_skeleton_outside():
     V, F = box()
     sk = stbs.Skeleton([[0.5, 0.5, 0.5], [1.5, 0.5, 0.5]], [[0, 1]], names=["out"])
-    with pytest.raises(ValueError, match=r"bone 0 \('out'.*joint 1 .* outside the surface"):
+    # The joint is 0.5 from the face x = 1; the box's diagonal is sqrt(3).
+    with pytest.raises(ValueError, match=r"bone 0 \('out'.*joint 1 .* outside the surface by "
+                       r"0\.5 \(29 % of the shape's size; \d+ skeleton point.*clip_skeleton"):
         tetrahedralize(V, F, sk)
+
+
+@pytest.mark.parametrize("engine", ENGINES_3D)
+def test_clip_skeleton_meshes_the_inside_part(engine):
+    V, F = box()
+    sk = stbs.Skeleton([[0.3, 0.5, 0.5], [0.5, 0.5, 0.5], [1.5, 0.5, 0.5]], [[0, 1], [1, 2]],
+                       names=["in", "tip"])
+    with pytest.warns(UserWarning, match=r"left out \(1 joint\(s\)\); the farthest is 0\.5 "
+                      r"outside"):
+        m = tetrahedralize(V, F, sk, bone_samples=[1, 9], engine=engine, clip_skeleton=True)
+    n = V.shape[0]
+    assert np.array_equal(m.joint_vertex, [n, n + 1, -1])
+    assert np.array_equal(m.V[m.joint_vertex[:2]], sk.C[:2])
+    assert np.array_equal(m.V[:n], V) and tet_volumes_ok(m)
+    # Bone 1's samples at t = 0.1 .. 0.9 lie at x = 0.6 .. 1.4. Kept: those farther
+    # inside than a tenth of the sample spacing (the mean surface edge: 0.12 here).
+    idx, t = m.bone_vertices(1, sk.BE)
+    assert idx[0] == n + 1 and t[0] == 0.0
+    np.testing.assert_allclose(t[1:], [0.1, 0.2, 0.3])
+    np.testing.assert_allclose(m.V[idx[1:], 0], [0.6, 0.7, 0.8])
+    on = m.on_joint
+    assert np.array_equal(np.flatnonzero(on >= 0), [n, n + 1]) and on[n + 1] == 1
+    assert np.all(np.abs(winding_numbers(m.V[n:n + 6], V, F)) > 0.5)
+    # The weights find every bone on the clipped mesh.
+    W = stbs.bone_weights(m.V, sk, T=m.T, tol=1e-8)
+    assert W[idx[-1], 1] == pytest.approx(1.0) and W[n, 0] == pytest.approx(1.0)
+
+
+def tet_volumes_ok(m) -> bool:
+    from stbs.meshing._geometry import tet_volumes
+
+    return bool(tet_volumes(m.V, m.T).min() > 0)
+
+
+def test_clip_skeleton_crossing_bone_and_bone_wholly_outside(u_prism):
+    V, F, _ = u_prism
+    # A bone across the U's gap: its samples in the gap are left out, both joints kept.
+    sk = stbs.Skeleton([[1, 5, 1], [5, 5, 1]], [[0, 1]], names=["bridge"])
+    with pytest.warns(UserWarning, match=r"left out \(0 joint\(s\)\)"):
+        m = tetrahedralize(V, F, sk, bone_samples=[7], clip_skeleton=True)
+    assert (m.joint_vertex >= 0).all()
+    _, t = m.bone_vertices(0, sk.BE)
+    x = 1 + 4 * t
+    assert np.all((x <= 2) | (x >= 4)) and t.size == 2 + 2  # samples at x = 1.5, 4.5
+    away = stbs.Skeleton([[1, 3, 1], [1, 5, 1], [9, 3, 1], [9, 5, 1]], [[0, 1], [2, 3]],
+                         names=["arm", "away"])
+    with pytest.raises(ValueError, match=r"bone 1 \('away'.*lies outside the surface"):
+        tetrahedralize(V, F, away, clip_skeleton=True)
 
 
 def test_dimension_mismatch():

@@ -43,6 +43,13 @@ def add_tol_argument(p: argparse.ArgumentParser) -> None:
                         f"gives the exact QP solution, up to 1.5x slower)")
 
 
+def add_clip_argument(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--clip-skeleton", action="store_true",
+                   help="3D bbw with --tets auto: mesh only the skeleton's parts inside the "
+                        "surface (for bone tips poking out of the skin); without it a joint "
+                        "outside is an error that gives the distance")
+
+
 def resolve_tol(tol: float | None, bone: str, endpoint: str) -> float:
     """The ``--tol`` value checked against the methods it applies to."""
     from ._errors import CommandError
@@ -66,6 +73,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="endpoint weights (default: bbw)")
     p.add_argument("--tets", default="auto", metavar="auto|FILE",
                    help="3D bbw: tetrahedralize the surface (auto) or read tets from FILE")
+    add_clip_argument(p)
     add_tol_argument(p)
 
 
@@ -111,7 +119,7 @@ class _Stages:
 
 
 def compute_weights(st: _Stages, V, F, T, sk, *, bone: str, endpoint: str, tets: str,
-                    mesh_name: str, tol: float = DEFAULT_TOL):
+                    mesh_name: str, tol: float = DEFAULT_TOL, clip_skeleton: bool = False):
     """Bone and endpoint weights (n, b) of the rest mesh (V, F, T); see DESCRIPTION.
 
     Returns W, E and whether the rig keeps the mesh's own tetrahedra.
@@ -122,6 +130,9 @@ def compute_weights(st: _Stages, V, F, T, sk, *, bone: str, endpoint: str, tets:
     from ._errors import CommandError
 
     n = len(V)
+    if clip_skeleton and (bone != "bbw" or V.shape[1] != 3 or tets != "auto" or T is not None):
+        raise CommandError("--clip-skeleton applies when stbs tetrahedralizes a 3D surface "
+                           "(--bone bbw, --tets auto, a surface without tetrahedra)")
     if bone == "heat":
         if V.shape[1] != 3 or F is None:
             raise CommandError(f"--bone heat needs a 3D triangle surface; {mesh_name!r} is "
@@ -146,7 +157,8 @@ def compute_weights(st: _Stages, V, F, T, sk, *, bone: str, endpoint: str, tets:
         else:
             if F is None:
                 raise CommandError(f"{mesh_name!r}: a 3D rig needs a closed triangle surface")
-            tet = st.run("tetrahedralize (bones inside)", tetrahedralize, V, F, sk)
+            tet = st.run("tetrahedralize (bones inside)", tetrahedralize, V, F, sk,
+                         clip_skeleton=clip_skeleton)
             Vm, Fm, Tm = tet.V, F, tet.T
         Wm = st.run("bone weights (bbw)", bone_weights, Vm, sk, method="bbw",
                     F=Fm if Tm is None else None, T=Tm, tol=tol, bar=True)
@@ -191,7 +203,8 @@ def run(args: argparse.Namespace) -> int:
     V, F, T = mesh.V, mesh.F, mesh.T
     sk = st.run("read skeleton", read_skeleton, args.skeleton, dim=V.shape[1])
     W, E, keep_T = compute_weights(st, V, F, T, sk, bone=args.bone, endpoint=args.endpoint,
-                                   tets=args.tets, mesh_name=args.mesh, tol=tol)
+                                   tets=args.tets, mesh_name=args.mesh, tol=tol,
+                                   clip_skeleton=args.clip_skeleton)
     rig = Rig(V=V, F=F, T=T if keep_T else None, C=sk.C, BE=sk.BE, names=sk.names,
               W=W, E=E, meta={"bone": args.bone, "endpoint": args.endpoint})
     st.run("write rig", save_rig, out, rig)

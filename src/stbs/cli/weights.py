@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import sys
 
-from .rig import BONE, ENDPOINT, add_tol_argument
+from .rig import BONE, ENDPOINT, add_clip_argument, add_tol_argument
 
 NAME = "weights"
 HELP = "recompute a rig's bone and/or endpoint weights; write a .npz rig"
@@ -29,6 +29,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="endpoint weights (default: bbw)")
     p.add_argument("--tets", default="auto", metavar="auto|FILE",
                    help="3D bbw: tetrahedralize the surface (auto) or read tets from FILE")
+    add_clip_argument(p)
     add_tol_argument(p)
 
 
@@ -55,7 +56,8 @@ def run(args: argparse.Namespace) -> int:
     else:
         W, E, keep_T = compute_weights(st, rig.V, rig.F, rig.T, sk, bone=args.bone,
                                        endpoint=args.endpoint, tets=args.tets,
-                                       mesh_name=args.rig, tol=tol)
+                                       mesh_name=args.rig, tol=tol,
+                                       clip_skeleton=args.clip_skeleton)
     meta = dict(rig.meta or {}, endpoint=args.endpoint)
     if args.bone != "keep":
         meta["bone"] = args.bone

@@ -32,11 +32,14 @@ class _SkeletonRecord:
     def on_joint(self) -> np.ndarray:
         """(n,) int64: the joint a vertex sits on, -1 elsewhere."""
         out = np.full(self.V.shape[0], -1, dtype=np.int64)
-        out[self.joint_vertex] = np.arange(self.joint_vertex.size)
+        has = self.joint_vertex >= 0        # -1: a joint left out (clip_skeleton)
+        out[self.joint_vertex[has]] = np.flatnonzero(has)
         return out
 
     def bone_vertices(self, i: int, BE: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """All vertices on bone ``i``, its two joints included, sorted along the bone.
+
+        A joint left out of the mesh (``joint_vertex`` -1, ``clip_skeleton``) is omitted.
 
         Parameters
         ----------
@@ -60,7 +63,8 @@ class _SkeletonRecord:
         s, e = self.joint_vertex[BE[i]]
         idx = np.concatenate([[s], inner[order], [e]]).astype(np.int64)
         t = np.concatenate([[0.0], self.t_bone[inner[order]], [1.0]])
-        return idx, t
+        has = idx >= 0                      # a joint left out by clip_skeleton
+        return idx[has], t[has]
 
 
 @dataclass(frozen=True, eq=False)
@@ -121,7 +125,8 @@ class TetMesh(_SkeletonRecord):
         ``keep_surface=True`` and TetGen this is the input surface (up to
         order); the builtin mesher's boundary only approximates it.
     on_bone, t_bone, joint_vertex, n_input
-        As for :class:`TriMesh`.
+        As for :class:`TriMesh`; with ``clip_skeleton=True`` a joint outside the
+        surface has ``joint_vertex`` -1.
     engine : str
         ``"tetgen"`` or ``"builtin"``.
     """
@@ -138,4 +143,4 @@ class TetMesh(_SkeletonRecord):
     def __repr__(self) -> str:
         return (f"TetMesh({self.V.shape[0]} vertices ({self.n_input} surface), "
                 f"{self.T.shape[0]} tetrahedra, {int((self.on_bone >= 0).sum())} bone "
-                f"samples, {self.joint_vertex.size} joints, engine={self.engine!r})")
+                f"samples, {int((self.joint_vertex >= 0).sum())} joints, engine={self.engine!r})")

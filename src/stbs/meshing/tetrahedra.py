@@ -36,7 +36,7 @@ ENGINES_3D = ("auto", "tetgen", "builtin")
 def tetrahedralize(V, F, sk: Skeleton, *, max_volume: float | None = None,
                    max_radius_edge: float | None = 2.0, keep_surface: bool = True,
                    bone_samples=None, engine: Literal["auto", "tetgen", "builtin"] = "auto",
-                   self_intersections: bool = True) -> TetMesh:
+                   self_intersections: bool = True, clip_skeleton: bool = False) -> TetMesh:
     """Tetrahedral mesh of a closed surface with the skeleton's samples as vertices.
 
     Parameters
@@ -78,6 +78,14 @@ def tetrahedralize(V, F, sk: Skeleton, *, max_volume: float | None = None,
         fails on a surface that passed the checks.
     self_intersections : bool, keyword-only
         Check the surface for self-intersections first (default True).
+    clip_skeleton : bool, keyword-only
+        False (default): a joint or bone sample outside the surface, or a bone
+        crossing it, is an error that gives the distance. True: mesh only the
+        skeleton's parts inside the shape, for rigs whose bone tips poke out of the
+        skin. Joints and samples outside the surface or closer to it than a tenth of
+        the sample spacing are left out (with a ``UserWarning`` that counts them and
+        gives the farthest distance); a left-out joint has ``joint_vertex`` -1. A bone
+        with no point left inside is still an error, naming the bone.
 
     Returns
     -------
@@ -147,26 +155,58 @@ def tetrahedralize(V, F, sk: Skeleton, *, max_volume: float | None = None,
     if max_volume is not None:
         spacing = min(spacing, (6.0 * np.sqrt(2.0) * max_volume) ** (1 / 3))  # regular tet
     sp = sample_skeleton(sk, spacing, counts)
-    _check_skeleton_inside(V, F, sk, sp)
+    sp, joint_vertex = _skeleton_inside(V, F, sk, sp, n=V.shape[0], clip=clip_skeleton,
+                                        margin=0.1 * spacing)
     if engine == "auto":
         engine = "tetgen" if _optional.available("tetgen") else "builtin"
         if engine == "tetgen":
             try:
-                return _tetgen(V, F, sk, sp, max_volume, max_radius_edge, keep_surface)
+                return _tetgen(V, F, sk, sp, joint_vertex, max_volume, max_radius_edge,
+                               keep_surface)
             except RuntimeError as exc:
                 warnings.warn(f"tetrahedralize: TetGen failed ({exc}); using the builtin "
                               "mesher instead", UserWarning, stacklevel=2)
                 engine = "builtin"
     if engine == "tetgen":
-        return _tetgen(V, F, sk, sp, max_volume, max_radius_edge, keep_surface)
-    return _lattice(V, F, sk, sp, max_volume, mean_edge)
+        return _tetgen(V, F, sk, sp, joint_vertex, max_volume, max_radius_edge,
+                       keep_surface)
+    return _lattice(V, F, sk, sp, joint_vertex, max_volume, mean_edge)
 
 
-def _check_skeleton_inside(V, F, sk: Skeleton, sp: SkeletonPoints) -> None:
-    from ._kernels import winding_numbers
+def _skeleton_inside(V, F, sk: Skeleton, sp: SkeletonPoints, *, n: int, clip: bool,
+                     margin: float) -> tuple[SkeletonPoints, np.ndarray]:
+    """The skeleton points to insert and every joint's vertex (-1: left out).
 
-    w = winding_numbers(sp.X, V, F)
-    out = np.flatnonzero(np.abs(w) < 0.5)
+    Without ``clip``, any point outside the surface or bone crossing it is an error.
+    """
+    from ._kernels import SurfaceIndex, winding_numbers
+
+    inside = np.abs(winding_numbers(sp.X, V, F)) >= 0.5
+    size = scale_of(V)
+    if clip:
+        dist, _ = SurfaceIndex(V, F).closest_side(sp.X, np.inf)
+        keep = inside & (dist >= margin)
+        lost = ~keep
+        if lost.any():
+            has = np.zeros(sk.n_bones, dtype=bool)
+            has[sp.bone[keep & (sp.bone >= 0)]] = True
+            kept_joints = np.flatnonzero(keep[:sk.n_joints])
+            has[np.isin(sk.BE, kept_joints).any(axis=1)] = True
+            if not has.all():
+                i = int(np.argmin(has))
+                raise ValueError(f"sk: {bone_label(sk, i)} lies outside the surface (none of "
+                                 "its points is inside the shape); move the skeleton inside")
+            far = np.where(inside, 0.0, dist)[lost].max()
+            warnings.warn(f"tetrahedralize: {int(lost.sum())} skeleton point(s) outside or "
+                          f"within {margin:.3g} of the surface left out "
+                          f"({int((~keep[:sk.n_joints]).sum())} joint(s)); the farthest is "
+                          f"{far:.3g} outside ({100 * far / size:.2g} % of the shape's size)",
+                          UserWarning, stacklevel=3)
+        joint_vertex = np.full(sk.n_joints, -1, dtype=np.int64)
+        kj = keep[:sk.n_joints]
+        joint_vertex[kj] = n + np.arange(int(kj.sum()))
+        return SkeletonPoints(X=sp.X[keep], bone=sp.bone[keep], t=sp.t[keep]), joint_vertex
+    out = np.flatnonzero(~inside)
     if out.size:
         k = int(out[0])
         if sp.bone[k] < 0:
@@ -176,9 +216,13 @@ def _check_skeleton_inside(V, F, sk: Skeleton, sp: SkeletonPoints) -> None:
         else:
             who = f"{bone_label(sk, int(sp.bone[k]))} leaves the shape: its point at t = " \
                 f"{sp.t[k]:.3g}"
-        raise ValueError(f"sk: {who} at {fmt_point(sp.X[k])} is outside the surface; the "
-                         "skeleton must lie inside the shape (check that the skeleton and the "
-                         "mesh use the same coordinates)")
+        d = float(SurfaceIndex(V, F).closest_side(sp.X[k:k + 1], np.inf)[0][0])
+        raise ValueError(f"sk: {who} at {fmt_point(sp.X[k])} is outside the surface by "
+                         f"{d:.3g} ({100 * d / size:.2g} % of the shape's size; {out.size} "
+                         "skeleton point(s) outside); the skeleton must lie inside the shape "
+                         "(check that the skeleton and the mesh use the same coordinates), or "
+                         "pass clip_skeleton=True (stbs rig --clip-skeleton) to mesh only its "
+                         "parts inside")
     A, B = sk.A, sk.B
     P = V[F]
     for i in range(sk.n_bones):
@@ -187,7 +231,9 @@ def _check_skeleton_inside(V, F, sk: Skeleton, sp: SkeletonPoints) -> None:
             f = int(np.argmax(hit))
             raise ValueError(f"sk: {bone_label(sk, i)} crosses the surface (triangle {f} at "
                              f"{fmt_point(P[f].mean(axis=0))}); every bone must lie strictly "
-                             "inside the shape")
+                             "inside the shape, or pass clip_skeleton=True (stbs rig "
+                             "--clip-skeleton) to mesh only its parts inside")
+    return sp, n + np.arange(sk.n_joints, dtype=np.int64)
 
 
 # TetGen runs in a child process: after a failure the binding corrupts the heap (we saw
@@ -227,7 +273,7 @@ def _run_tetgen(X: np.ndarray, F: np.ndarray, switches: str) -> tuple[np.ndarray
             return out["nodes"], out["elems"]
 
 
-def _tetgen(V, F, sk, sp, max_volume, max_radius_edge, keep_surface) -> TetMesh:
+def _tetgen(V, F, sk, sp, joint_vertex, max_volume, max_radius_edge, keep_surface) -> TetMesh:
     n = V.shape[0]
     X = np.vstack([V, sp.X])
     switches = "pQ"
@@ -240,10 +286,10 @@ def _tetgen(V, F, sk, sp, max_volume, max_radius_edge, keep_surface) -> TetMesh:
     Vt, T = _run_tetgen(X, F, switches)
     if Vt.shape[0] < X.shape[0] or not np.array_equal(Vt[:X.shape[0]], X):
         raise RuntimeError("TetGen changed or dropped input points")
-    return _finish(Vt, T, V, F, sk, sp, n, "tetgen")
+    return _finish(Vt, T, V, F, sk, sp, joint_vertex, n, "tetgen")
 
 
-def _lattice(V, F, sk, sp, max_volume, mean_edge) -> TetMesh:
+def _lattice(V, F, sk, sp, joint_vertex, max_volume, mean_edge) -> TetMesh:
     from scipy.sparse import coo_array
     from scipy.sparse.csgraph import connected_components
 
@@ -326,7 +372,7 @@ def _lattice(V, F, sk, sp, max_volume, mean_edge) -> TetMesh:
     used[:m] = True  # checked in _finish
     # Drop lattice points no kept tetrahedron uses (they all come after the fixed ones).
     remap = np.cumsum(used) - 1
-    return _finish(X[used], remap[T], V, F, sk, sp, n, "builtin")
+    return _finish(X[used], remap[T], V, F, sk, sp, joint_vertex, n, "builtin")
 
 
 def _peel_slivers(X, T, n, *, min_dihedral_deg: float = 5.0, rounds: int = 8):
@@ -376,7 +422,8 @@ def _min_dihedral(X, T) -> np.ndarray:
     return out
 
 
-def _finish(X, T, V, F, sk, sp: SkeletonPoints, n: int, engine: str) -> TetMesh:
+def _finish(X, T, V, F, sk, sp: SkeletonPoints, joint_vertex: np.ndarray, n: int,
+            engine: str) -> TetMesh:
     from ._kernels import winding_numbers
 
     m = n + sp.X.shape[0]
@@ -410,7 +457,7 @@ def _finish(X, T, V, F, sk, sp: SkeletonPoints, n: int, engine: str) -> TetMesh:
         on_bone[steiner[on]], t_bone[steiner[on]] = i[on], t[on]
     arrays = dict(V=X, T=T.astype(np.int64), F=boundary_faces(T).astype(np.int64),
                   on_bone=on_bone, t_bone=t_bone,
-                  joint_vertex=n + np.arange(sk.n_joints, dtype=np.int64))
+                  joint_vertex=joint_vertex)
     for a in arrays.values():
         a.setflags(write=False)
     return TetMesh(**arrays, n_input=n, engine=engine)
