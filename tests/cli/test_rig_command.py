@@ -70,6 +70,24 @@ def test_rig_elephant_with_its_tips_clipped(shared_data, tmp_path, capsys):
     assert (np.argmax(rig.W, axis=1) == np.argmax(ref, axis=1)).mean() > 0.8
 
 
+def test_rig_2d_with_a_joint_past_the_edge(shared_data, tmp_path, capsys):
+    # cantilever_S spans x in [-1, 1]; its last joint moved to x = 1.3, outside.
+    d = shared_data / "fast_support_reduction"
+    tgf = tmp_path / "long.tgf"
+    tgf.write_text((d / "cantilever_S.tgf").read_text().replace("5  0.8", "5  1.3", 1))
+    out = tmp_path / "cant.npz"
+    args = ["rig", str(d / "cantilever_S.obj"), str(tgf), "-o", str(out)]
+    assert main(args) == 2
+    assert "joint 4 at (1.3, 0) outside the outline" in capsys.readouterr().err
+    assert main([*args, "--clip-skeleton"]) == 0
+    err = capsys.readouterr().err
+    assert "1 bone(s) cross the outline" in err and "the farthest 0.3 outside" in err
+    rig = check_rig(out, 200, 4)
+    # The last bone's endpoint weight grows along it up to the shape's end (t = 0.6).
+    tip = np.argmin(np.linalg.norm(rig.V - [1.0, 0.0], axis=1))
+    assert 0.5 < rig.E[tip, 3] < 0.7
+
+
 @pytest.mark.parametrize("extra, match", [
     (["-o", "x.obj"], "expected a .npz rig file"),
     (["-o", "nofolder/x.npz"], "does not exist"),
@@ -80,8 +98,8 @@ def test_rig_elephant_with_its_tips_clipped(shared_data, tmp_path, capsys):
     (["-o", "x.npz", "--tol", "abc"], "invalid float value"),
     (["-o", "x.npz", "--bone", "heat", "--endpoint", "idw", "--tol", "1e-6"],
      "--tol applies to --bone bbw or --endpoint bbw/bbw-joints"),
-    (["-o", "x.npz", "--clip-skeleton"],
-     "--clip-skeleton applies when stbs tetrahedralizes a 3D surface"),
+    (["-o", "x.npz", "--bone", "heat", "--clip-skeleton"],
+     "--clip-skeleton applies when stbs meshes the shape itself"),
 ])
 def test_rig_errors_exit_2_one_line(shared_data, tmp_path, capsys, monkeypatch, extra, match):
     monkeypatch.chdir(tmp_path)

@@ -4,11 +4,14 @@ from __future__ import annotations
 
 import math
 import sys
+import warnings
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
 from meshing_checks import (
     ENGINES_2D,
+    check_bones_not_crossed,
     check_covers_outline,
     check_skeleton_record,
     check_trimesh,
@@ -202,8 +205,74 @@ def test_joint_outside_the_outline_names_the_bone():
 def test_bone_crossing_the_outline_names_the_bone():
     # Both joints inside the U, the bone across its gap.
     sk = stbs.Skeleton([[1, 5], [5, 5]], [[0, 1]], names=["bridge"])
-    with pytest.raises(ValueError, match=r"bone 0 \('bridge'.*crosses the outline"):
+    with pytest.raises(ValueError, match=r"bone 0 \('bridge'.*crosses the outline.*"
+                       r"clip_skeleton=True"):
         triangulate_2d(U_SHAPE, sk)
+
+
+@pytest.mark.parametrize("engine", ENGINES_2D)
+def test_clip_skeleton_meshes_the_parts_inside(engine):
+    # "tip" leaves the U through its top (y = 6) at t = 0.5; "bridge" crosses the gap
+    # between the arms (2 < x < 4) and is inside for t < 0.25 and t > 0.75.
+    sk = stbs.Skeleton([[1, 1], [1, 5], [1, 7], [5, 1], [5, 5]],
+                       [[0, 1], [1, 2], [0, 3], [3, 4], [1, 4]],
+                       names=["left", "tip", "base", "right", "bridge"])
+    with pytest.raises(ValueError, match=r"joint 2 .* outside the outline.*clip_skeleton=True"):
+        triangulate_2d(U_SHAPE, sk, engine=engine)
+    with pytest.warns(UserWarning, match=r"2 bone\(s\) cross the outline .*\(1 joint\(s\) "
+                      r"outside left out, the farthest 1 outside"):
+        m = triangulate_2d(U_SHAPE, sk, max_area=0.05, engine=engine, clip_skeleton=True)
+    check_trimesh(m, sk, record=False)   # the record of a clipped skeleton: below
+    check_covers_outline(m, [U_SHAPE])
+    assert m.joint_vertex[2] == -1
+    kept = np.array([0, 1, 3, 4])
+    assert np.array_equal(m.V[m.joint_vertex[kept]], sk.C[kept])
+    edges = {tuple(e) for e in edges_of(m.F).tolist()}
+    gaps = {"tip": (0.5, 1.0), "bridge": (0.25, 0.75)}   # the parts outside
+    pieces = []
+    for i, name in enumerate(sk.names):
+        idx, t = m.bone_vertices(i, sk.BE)
+        assert np.all(np.diff(t) > 0)
+        expect = sk.A[i] + t[:, None] * (sk.B[i] - sk.A[i])
+        assert np.abs(m.V[idx] - expect).max() <= 1e-12 * 7
+        lo, hi = gaps.get(name, (2.0, 2.0))
+        assert not np.any((t > lo) & (t < hi)), name      # nothing meshed outside
+        # The part inside reaches to within a tenth of the bone of the crossing.
+        if name in gaps:
+            assert np.any(t > lo - 0.1) and (name == "tip" or np.any(t < hi + 0.1))
+        for a, c, ta, tc in zip(idx[:-1], idx[1:], t[:-1], t[1:], strict=True):
+            if not (ta <= lo and tc >= hi):               # pieces are chains of edges
+                assert (min(a, c), max(a, c)) in edges, name
+                pieces.append((m.V[a], m.V[c]))
+    A, B = (np.array(x) for x in zip(*pieces, strict=True))
+    check_bones_not_crossed(m, SimpleNamespace(A=A, B=B, n_bones=len(pieces)))
+    # Bone and endpoint weights on the clipped mesh: e = t along every bone.
+    W = stbs.bone_weights(m.V, sk, F=m.F, tol=1e-8)
+    with warnings.catch_warnings():
+        # The joint left out is outside the mesh: no nearest-vertex stand-in (and no
+        # warning about one), e = t along the part inside is all.
+        warnings.simplefilter("error")
+        E = stbs.endpoint_weights(m.V, sk, method="bbw", W=W, F=m.F, tol=1e-8)
+    for i in range(sk.n_bones):
+        idx, t = m.bone_vertices(i, sk.BE)
+        np.testing.assert_allclose(E[idx, i], t, atol=1e-9)
+    # Where "tip" leaves the shape (t = 0.5), e goes on smoothly from its cut end
+    # (t = 0.46 with this max_area), not to the 1 of the joint beyond.
+    top = np.argmin(np.linalg.norm(m.V - [1.0, 6.0], axis=1))
+    assert 0.45 < E[top, 1] < 0.6
+
+
+def test_clip_skeleton_bone_wholly_outside():
+    sk = stbs.Skeleton([[1, 1], [3, 1], [8, 1], [9, 1]], [[0, 1], [2, 3]], names=["in", "out"])
+    with pytest.raises(ValueError, match=r"bone 1 \('out'.*lies outside the outline"):
+        triangulate_2d(SQUARE, sk, clip_skeleton=True)
+    # A skeleton wholly inside is meshed as without clipping, and no warning.
+    inner = stbs.Skeleton([[1, 1], [3, 1]], [[0, 1]])
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        a = triangulate_2d(SQUARE, inner, clip_skeleton=True)
+    b = triangulate_2d(SQUARE, inner)
+    assert np.array_equal(a.V, b.V) and np.array_equal(a.F, b.F)
 
 
 def test_bone_crossing_a_hole():

@@ -45,9 +45,10 @@ def add_tol_argument(p: argparse.ArgumentParser) -> None:
 
 def add_clip_argument(p: argparse.ArgumentParser) -> None:
     p.add_argument("--clip-skeleton", action="store_true",
-                   help="3D bbw with --tets auto: mesh only the skeleton's parts inside the "
-                        "surface (for bone tips poking out of the skin); without it a joint "
-                        "outside is an error that gives the distance")
+                   help="bbw, when stbs meshes the shape (2D, or 3D with --tets auto): mesh "
+                        "only the skeleton's parts inside it (for bone tips poking out of the "
+                        "skin or past a traced image's edge); without it a joint outside is "
+                        "an error")
 
 
 def resolve_tol(tol: float | None, bone: str, endpoint: str) -> float:
@@ -130,9 +131,9 @@ def compute_weights(st: _Stages, V, F, T, sk, *, bone: str, endpoint: str, tets:
     from ._errors import CommandError
 
     n = len(V)
-    if clip_skeleton and (bone != "bbw" or V.shape[1] != 3 or tets != "auto" or T is not None):
-        raise CommandError("--clip-skeleton applies when stbs tetrahedralizes a 3D surface "
-                           "(--bone bbw, --tets auto, a surface without tetrahedra)")
+    if clip_skeleton and (bone != "bbw" or tets != "auto" or T is not None):
+        raise CommandError("--clip-skeleton applies when stbs meshes the shape itself "
+                           "(--bone bbw: a 2D mesh, or a 3D surface with --tets auto)")
     if bone == "heat":
         if V.shape[1] != 3 or F is None:
             raise CommandError(f"--bone heat needs a 3D triangle surface; {mesh_name!r} is "
@@ -144,7 +145,8 @@ def compute_weights(st: _Stages, V, F, T, sk, *, bone: str, endpoint: str, tets:
             if F is None:
                 raise CommandError(f"{mesh_name!r}: a 2D rig needs triangles to take the "
                                    "outline from")
-            tri = st.run("triangulate (bones inside)", triangulate_2d, (V, F), sk)
+            tri = st.run("triangulate (bones inside)", triangulate_2d, (V, F), sk,
+                         clip_skeleton=clip_skeleton)
             Vm, Fm, Tm = tri.V, tri.F, None
         elif T is not None and tets == "auto":
             Vm, Fm, Tm = V, F, T

@@ -10,6 +10,7 @@ import numpy as np
 from .. import _checks
 from ..skeleton import Skeleton
 from . import _optional
+from ._clip import Clip, clip_skeleton_2d
 from ._geometry import REL_TOL, points_in_loops, scale_of, signed_area, triangle_areas
 from ._pslg import PSLG, bone_distance, build_pslg, check_skeleton_inside
 from ._samples import check_bone_samples
@@ -30,7 +31,7 @@ MAX_MIN_ANGLE_BUILTIN = math.radians(30.0)
 def triangulate_2d(outline, sk: Skeleton, *, max_area: float | None = None,
                    min_angle: float = math.radians(30.0), bone_samples=None,
                    engine: Literal["auto", "triangle", "builtin"] = "auto",
-                   max_points: int | None = None) -> TriMesh:
+                   max_points: int | None = None, clip_skeleton: bool = False) -> TriMesh:
     """Quality triangle mesh of a 2D shape with the skeleton inside it.
 
     Every joint is a vertex and every bone is a chain of constrained segments
@@ -74,6 +75,16 @@ def triangulate_2d(outline, sk: Skeleton, *, max_area: float | None = None,
         Safety limit on the number of vertices for the builtin engine, which stops
         with a ``UserWarning`` (and returns the mesh so far) beyond it. None: 100
         per input point plus 8 per ``max_area`` of the shape's area.
+    clip_skeleton : bool, keyword-only
+        False (default): a joint outside the shape or a bone crossing the outline is
+        an error. True: mesh only the bones' parts inside, for skeletons drawn past
+        the edge of a traced image. Each bone is cut where it crosses the outline and
+        ends a quarter of the sample spacing (at most a tenth of the part) inside,
+        further where the outline runs close; joints outside are left out
+        (``joint_vertex`` -1) and the cut ends are vertices on the bone (``on_bone``,
+        ``t_bone``). A ``UserWarning`` says
+        how many bones were cut and how far the farthest joint is outside; a bone
+        with no part inside is still an error naming it.
 
     Returns
     -------
@@ -133,11 +144,14 @@ def triangulate_2d(outline, sk: Skeleton, *, max_area: float | None = None,
                          f"(30 degrees) with the builtin engine, got {min_angle}; install "
                          "the 'triangle' extra for up to 34 degrees")
     out = as_outline(outline)
-    check_skeleton_inside(out, sk)
     L = np.linalg.norm(out.P[out.segments[:, 1]] - out.P[out.segments[:, 0]], axis=1)
     spacing = float(np.median(L))
     if max_area is not None:
         spacing = min(spacing, math.sqrt(4.0 * max_area / math.sqrt(3.0)))
+    clip = clip_skeleton_2d(out, sk, 0.25 * spacing) if clip_skeleton else None
+    if clip is not None:     # mesh the pieces inside as the skeleton, map back after
+        sk, counts = clip.sk, clip.counts(counts)
+    check_skeleton_inside(out, sk)
     pslg = build_pslg(out, sk, spacing, counts)
     if engine == "triangle":
         V, F, pb, pt = _triangle(pslg, min_angle=min_angle, max_area=max_area)
@@ -149,7 +163,7 @@ def triangulate_2d(outline, sk: Skeleton, *, max_area: float | None = None,
             max_points = 100 * pslg.P.shape[0] + (8 * area / max_area if max_area else 0)
         V, F, pb, pt = refine(pslg, min_angle=min_angle, max_area=max_area,
                               max_points=int(max_points))
-    return _finish(pslg, V, F, pb, pt, engine)
+    return _finish(pslg, V, F, pb, pt, engine, clip)
 
 
 def _triangle(pslg: PSLG, *, min_angle: float, max_area: float | None):
@@ -188,7 +202,7 @@ def _triangle(pslg: PSLG, *, min_angle: float, max_area: float | None):
     return V, F, pb, pt
 
 
-def _finish(pslg: PSLG, V, F, pb, pt, engine: str) -> TriMesh:
+def _finish(pslg: PSLG, V, F, pb, pt, engine: str, clip: Clip | None = None) -> TriMesh:
     m = pslg.P.shape[0]
     if not np.array_equal(V[:m], pslg.P):
         raise RuntimeError(f"{engine} mesher moved input points (internal error)")
@@ -210,8 +224,11 @@ def _finish(pslg: PSLG, V, F, pb, pt, engine: str) -> TriMesh:
     if area.min() <= 1e-14 * scale_of(V) ** 2:
         raise RuntimeError(f"{engine} mesher produced a degenerate triangle (internal error)")
     pt = np.where(pb >= 0, pt, np.nan)
+    joint_vertex = pslg.joint_vertex.copy()
+    if clip is not None:
+        pb, pt, joint_vertex = clip.to_bones(pb, pt, joint_vertex)
     arrays = dict(V=V, F=F.astype(np.int64), on_bone=pb.astype(np.int64),
-                  t_bone=pt.astype(np.float64), joint_vertex=pslg.joint_vertex.copy())
+                  t_bone=pt.astype(np.float64), joint_vertex=joint_vertex)
     for a in arrays.values():
         a.setflags(write=False)
     return TriMesh(**arrays, n_input=pslg.n_input, engine=engine)

@@ -18,6 +18,7 @@ bone weight ``W[:, i] > threshold`` (paper §3, 1e-7), when ``W`` is given.
 
 from __future__ import annotations
 
+import sys
 import threading
 import warnings
 from concurrent.futures import ThreadPoolExecutor, as_completed
@@ -293,23 +294,38 @@ def _elements(V: np.ndarray, F, T) -> np.ndarray:
 
 
 def _joint_vertices(V: np.ndarray, used: np.ndarray, sk: Skeleton, tol: float,
-                    joints) -> dict[int, int]:
-    """Mesh vertex (among ``used``) of each joint: the one on it, else the nearest (warned)."""
-    out = {}
+                    joints) -> tuple[dict[int, int], dict[int, str]]:
+    """Mesh vertex (among ``used``) of each joint: the one on it, else the nearest.
+
+    Also returns, for the joints with no vertex on them, what to say when the nearest
+    is used (:func:`_warn_nearest`).
+    """
+    out, far = {}, {}
     joints = sorted(set(int(k) for k in joints))
     Dj = _joint_distances(V[used], sk.C[joints])
-    far = []
     for col, k in enumerate(joints):
         j = int(np.argmin(Dj[:, col]))
         v = int(used[j])
         out[k] = v
         if Dj[j, col] > tol:
-            far.append(f"joint {k} -> vertex {v} at distance {Dj[j, col]:.3g}")
+            far[k] = f"joint {k} -> vertex {v} at distance {Dj[j, col]:.3g}"
+    return out, far
+
+
+def _in_elements(V: np.ndarray, El: np.ndarray, x: np.ndarray) -> bool:
+    """Whether point ``x`` lies in one of the simplices ``V[El]`` (to rounding)."""
+    P = V[El]
+    D = np.swapaxes(P[:, 1:] - P[:, :1], 1, 2)          # (e, d, d) edge vectors as columns
+    ok = np.abs(np.linalg.det(D)) > 0
+    lam = np.linalg.solve(D[ok], (x - P[ok, 0])[..., None])[..., 0]
+    return bool(np.any((lam.min(axis=1) >= -1e-12) & (lam.sum(axis=1) <= 1 + 1e-12)))
+
+
+def _warn_nearest(far: dict[int, str]) -> None:
     if far:
         warnings.warn("BBW endpoint weights: no mesh vertex lies on "
-                      f"{len(far)} joint(s); using the nearest vertices: " + "; ".join(far),
-                      UserWarning, stacklevel=4)
-    return out
+                      f"{len(far)} joint(s); using the nearest vertices: "
+                      + "; ".join(far[k] for k in sorted(far)), UserWarning, stacklevel=4)
 
 
 def _on_bone(V: np.ndarray, used: np.ndarray, sk: Skeleton, i: int,
@@ -425,8 +441,15 @@ def bbw_endpoint(V, sk: Skeleton, *, T=None, F=None, W=None,
     restrict = W is not None and threshold is not None
     cache: dict = {}
     used = np.unique(El)     # vertices in no element cannot carry a constraint
-    jv = _joint_vertices(V, used, sk, on_tol, range(sk.n_joints) if joints else np.unique(sk.BE))
-    cand, ks = _unique_joint_vertices(jv)
+    jv, far = _joint_vertices(V, used, sk, on_tol,
+                              range(sk.n_joints) if joints else np.unique(sk.BE))
+    try:
+        cand, ks = _unique_joint_vertices(jv)
+    finally:
+        if joints or sys.exc_info()[0] is not None:   # else: said per bone, below
+            _warn_nearest(far)
+    nearest: dict[int, str] = {}
+    outside = set() if joints else {k for k in far if not _in_elements(V, El, sk.C[k])}
     if joints and not restrict:
         # One solve for all joints on the whole mesh, then eq. 7.
         bidx = cand
@@ -449,8 +472,15 @@ def bbw_endpoint(V, sk: Skeleton, *, T=None, F=None, W=None,
         else:
             on, t = _on_bone(V, used, sk, i, on_tol)
             val = dict(zip(on.tolist(), t.tolist(), strict=True))
-            val[jv[a]] = 0.0
-            val[jv[e]] = 1.0
+            own = on.size >= 2 and float(np.ptp(t)) > 0.0
+            for k, value in ((a, 0.0), (e, 1.0)):
+                # A joint with no vertex on it: its nearest vertex stands in, unless the
+                # joint lies outside the mesh and the bone has vertices of its own (a
+                # mesh built with the skeleton clipped to the shape: e = t suffices).
+                if k not in far or not (own and k in outside):
+                    val[jv[k]] = value
+                    if k in far:
+                        nearest[k] = far[k]
             bidx = np.fromiter(val.keys(), dtype=np.int64)
             vals = np.fromiter(val.values(), dtype=float)[:, None]
         mask = None
@@ -463,6 +493,7 @@ def bbw_endpoint(V, sk: Skeleton, *, T=None, F=None, W=None,
                 keep = inside[bidx]
                 bidx, vals = bidx[keep], vals[keep]
         tasks.append((i, mask, bidx, vals))
+    _warn_nearest(nearest)
 
     def solve(task, threads=None):
         i, mask, bidx, vals = task
