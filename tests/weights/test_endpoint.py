@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import importlib.util
+import warnings
 
 import numpy as np
 import pytest
@@ -191,6 +192,29 @@ def test_fig8_heat_endpoint_weights_fall_short_beyond_the_handles():
     assert E[surf].min() >= 0 and E[surf].max() <= 1
     mid = surf[V[surf, 0] == 2.0]
     np.testing.assert_allclose(E[mid, 0], 0.5, atol=1e-6)   # symmetric box
+
+
+@pytest.mark.parametrize("restricted", [False, True])
+def test_heat_endpoint_joint_outside_the_shape_stands_in_from_inside(restricted):
+    # The bone runs past the box's end (x = 4) to x = 5: joint 1 sees no vertex from
+    # inside, so it is replaced, as a heat handle, by the bone's last point inside.
+    V, _, F = box_tets(h=0.25)
+    sk = stbs.Skeleton([[1.0, 0.5, 0.5], [5.0, 0.5, 0.5]], [[0, 1]])
+    W = np.ones((V.shape[0], 1)) if restricted else None
+    with pytest.warns(UserWarning, match=r"1 joint\(s\) lie outside the shape.*joint 1 "
+                      r"\(bone 0\): 26 % of the bone inwards"):
+        E = stbs.endpoint_weights(V, sk, "heat", F=F, W=W)
+    surf = np.unique(F)
+    assert E[surf].min() >= 0 and E[surf].max() <= 1
+    line = surf[np.isclose(V[surf, 1], 0.0) & np.isclose(V[surf, 2], 0.0)]
+    line = line[np.argsort(V[line, 0])]
+    assert np.all(np.diff(E[line, 0]) >= -1e-9)         # grows along the bone
+    assert E[line[-1], 0] > 0.9 and E[line[0], 0] < 0.1  # 0 at the start, ~1 at the end
+    # A joint inside is left alone: no warning.
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        stbs.endpoint_weights(V, stbs.Skeleton([[1.0, 0.5, 0.5], [3.0, 0.5, 0.5]], [[0, 1]]),
+                              "heat", F=F, W=W)
 
 
 def test_fig8_bbw_endpoint_weights_reach_the_full_twist(bbw_solver):

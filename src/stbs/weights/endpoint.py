@@ -243,8 +243,12 @@ def heat_endpoint(V, F, sk: Skeleton, *, W=None, threshold: float | None = DEFAU
     F = solver.F
     labels = [f"joint {k}" for k in range(sk.n_joints)]
     E = projection(V, sk)
+    stand_in = _joints_inside(V, F, sk)
     if W is None or threshold is None:
-        J, _ = solver.solve(sk.C, labels=labels)
+        C = sk.C.copy()
+        for (k, _), x in stand_in.items():     # the first bone's stand-in for a joint
+            C[k] = x if np.array_equal(C[k], sk.C[k]) else C[k]
+        J, _ = solver.solve(C, labels=labels)
         used = np.unique(F)
         E[used] = joints_to_endpoint(J[used], sk)
         return E
@@ -253,12 +257,56 @@ def heat_endpoint(V, F, sk: Skeleton, *, W=None, threshold: float | None = DEFAU
         if not faces.any():
             continue
         a, e = sk.BE[i]
-        X, _ = solver.solve(sk.C, faces=faces, columns=[a, e], labels=labels,
+        C = sk.C.copy()
+        for k in (a, e):
+            C[k] = stand_in.get((int(k), i), C[k])
+        X, _ = solver.solve(C, faces=faces, columns=[a, e], labels=labels,
                             context=f"bone {i} ({sk.names[i]!r}), restricted to "
                                     f"w > {threshold:g}: ")
         used = np.unique(F[faces])
         E[used, i] = 0.5 * ((1.0 - X[used, 0]) + X[used, 1])
     return np.clip(E, 0.0, 1.0)
+
+
+def _joints_inside(V: np.ndarray, F: np.ndarray, sk: Skeleton) -> dict:
+    """Stand-ins for joints outside the shape, as heat handles: {(joint, bone): point}.
+
+    A joint outside the surface (3D, by winding number) or the triangles' outline (2D)
+    sees no vertex from inside, so its heat weight would be 0 everywhere. For each
+    bone at such a joint, its stand-in is the bone's point nearest the joint that lies
+    inside (a 1/128 of the bone further in), warned with the distance; a bone wholly
+    outside gets none (and the solve then reports the joint).
+    """
+    from ..meshing._geometry import points_in_loops
+    from ..meshing._kernels import winding_numbers
+    from ..meshing.outline import boundary_loops
+
+    if V.shape[1] == 3:
+        def inside(P):
+            return np.abs(winding_numbers(np.ascontiguousarray(P), V, F)) >= 0.5
+    else:
+        loops = [V[L] for L in boundary_loops(F)]
+
+        def inside(P):
+            return points_in_loops(P, loops)
+
+    out, said = {}, []
+    for k in np.flatnonzero(~inside(sk.C)).tolist():
+        for i in np.flatnonzero((sk.BE == k).any(axis=1)).tolist():
+            other = sk.BE[i, 1] if sk.BE[i, 0] == k else sk.BE[i, 0]
+            s = np.arange(1, 257) / 256.0           # from the joint towards the other
+            P = sk.C[k] + s[:, None] * (sk.C[other] - sk.C[k])
+            ins = inside(P)
+            if ins.any():
+                j = min(int(np.argmax(ins)) + 2, s.size - 1)
+                out[(k, i)] = P[j]
+                said.append(f"joint {k} (bone {i}): {100 * s[j]:.2g} % of the bone inwards")
+    if said:
+        warnings.warn(f"heat endpoint weights: {len({k for k, _ in out})} joint(s) lie outside "
+                      "the shape, where they see no vertex; each heat handle is its bone's "
+                      "nearest point inside instead: " + "; ".join(said), UserWarning,
+                      stacklevel=4)
+    return out
 
 
 # -- BBW ---------------------------------------------------------------------------------
