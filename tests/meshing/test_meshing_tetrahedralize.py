@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import importlib.util
 import sys
 import warnings
 
@@ -22,6 +23,7 @@ from stbs.meshing import check_surface, tetrahedra, tetrahedralize, triangulate_
 from stbs.meshing._geometry import boundary_faces
 from stbs.meshing._kernels import SurfaceIndex, winding_numbers
 
+HAS_TETGEN = importlib.util.find_spec("tetgen") is not None
 BONE_X = stbs.Skeleton([[0.2, 0.5, 0.5], [0.5, 0.5, 0.5], [0.8, 0.55, 0.5]], [[0, 1], [1, 2]],
                        names=["upper", "lower"])
 
@@ -260,10 +262,34 @@ def test_self_intersection():
     V2, F2 = box((0.5, 0.5, 0.5), (1.5, 1.5, 1.5))
     V = np.vstack([V1, V2])
     F = np.vstack([F1, F2 + 8])
+    if HAS_TETGEN:      # (without it, engine="tetgen" is an ImportError: tested elsewhere)
+        with pytest.raises(ValueError, match="intersect.*MeshFix.*or pass engine='auto'"):
+            tetrahedralize(V, F, BONE_X, engine="tetgen")
     with pytest.raises(ValueError, match="intersect.*MeshFix"):
-        tetrahedralize(V, F, BONE_X)
+        check_surface(V, F)
     # Turning the test off hands the surface to the mesher as it is.
     check_surface(V, F, self_intersections=False)
+
+
+def test_self_intersecting_surface_meshed_by_winding_number():
+    # Two overlapping spheres, one surface: TetGen cannot mesh it; the builtin mesher
+    # fills the union, the bones crossing the inner sheets.
+    V1, F1 = icosphere(3)
+    V = np.vstack([V1, V1 + [0.93, 0.07, 0.05]])
+    F = np.vstack([F1, F1 + len(V1)])
+    sk = stbs.Skeleton([[-0.5, 0, 0], [0.5, 0, 0], [1.5, 0, 0]], [[0, 1], [1, 2]])
+    rng = np.random.default_rng(0)
+    lo, hi = V.min(axis=0), V.max(axis=0)
+    Q = lo + rng.random((40_000, 3)) * (hi - lo)
+    union = np.mean(np.abs(winding_numbers(Q, V, F)) > 0.5) * np.prod(hi - lo)  # +-0.5 %
+    for engine in ("auto", "builtin"):
+        with pytest.warns(UserWarning, match="intersects itself.*builtin mesher"):
+            m = tetrahedralize(V, F, sk, engine=engine)
+        assert m.engine == "builtin"
+        check_tetmesh(m, sk, V, volume=union, rel=0.01)
+    if HAS_TETGEN:
+        with pytest.raises(ValueError, match="intersects itself"):
+            tetrahedralize(V, F, sk, engine="tetgen")
 
 
 def test_degenerate_and_unused_and_duplicate():

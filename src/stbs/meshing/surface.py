@@ -139,12 +139,22 @@ def _check_manifold_vertices(V, F, H, inv) -> None:
 
 
 def _check_self_intersections(V, F) -> None:
+    s, t = self_intersecting_pairs(V, F)
+    if s.size:
+        C = V[F].mean(axis=1)
+        raise ValueError(f"F: triangles {s[0]} and {t[0]} intersect near "
+                         f"{fmt_point((C[s[0]] + C[t[0]]) / 2)}; the surface intersects "
+                         f"itself ({s.size} crossing pairs found) — {_REPAIR}")
+
+
+def self_intersecting_pairs(V, F) -> tuple[np.ndarray, np.ndarray]:
+    """Pairs of triangles ``(s, t)`` that cross (coplanar overlaps are not detected)."""
     P = V[F]
     C = P.mean(axis=1)
     R = np.linalg.norm(P - C[:, None], axis=2).max(axis=1)
     cand = cKDTree(C).query_pairs(2.0 * float(R.max()), output_type="ndarray")
     if cand.size == 0:
-        return
+        return np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64)
     s, t = cand[:, 0], cand[:, 1]
     near = np.linalg.norm(C[s] - C[t], axis=1) <= (R[s] + R[t]) * (1 + 1e-9)
     s, t = s[near], t[near]
@@ -169,8 +179,35 @@ def _check_self_intersections(V, F) -> None:
         for X, kx, Y in ((A, ks, B), (B, kt, A)):
             hit[m] |= segment_hits_triangle(X[r, (kx + 1) % 3], X[r, (kx + 2) % 3],
                                             Y[:, 0], Y[:, 1], Y[:, 2])
-    if hit.any():
-        k = int(np.argmax(hit))
-        raise ValueError(f"F: triangles {s[k]} and {t[k]} intersect near "
-                         f"{fmt_point((C[s[k]] + C[t[k]]) / 2)}; the surface intersects "
-                         f"itself ({int(hit.sum())} crossing pairs found) — {_REPAIR}")
+    return s[hit], t[hit]
+
+
+def exposed_faces(V, F, s: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """(f,) bool: the triangles of a self-intersecting surface on the boundary of the
+    region it encloses (by winding number), given its crossing pairs ``(s, t)``.
+
+    The crossings cut the surface into patches, each wholly on the boundary or wholly
+    inside (a part of one sheet inside another); one point just outside one triangle
+    of a patch decides it. Triangles in a crossing pair are decided one by one.
+    """
+    from ._kernels import winding_numbers
+
+    f = F.shape[0]
+    cut = np.zeros(f, dtype=bool)
+    cut[s] = cut[t] = True
+    E, inv, _ = unique_edges(F)
+    tri = np.tile(np.arange(f), 3)
+    # Triangles sharing an edge, neither of them cut, are in one patch.
+    order = np.argsort(inv, kind="stable")
+    a, b = tri[order][0::2], tri[order][1::2]       # closed manifold: two per edge
+    ok = ~cut[a] & ~cut[b]
+    G = coo_array((np.ones(int(ok.sum())), (a[ok], b[ok])), shape=(f, f))
+    _, patch = connected_components(G, directed=False)
+    patch[cut] = patch.max() + 1 + np.arange(int(cut.sum()))   # each cut triangle alone
+    _, rep = np.unique(patch, return_index=True)
+    P = V[F[rep]]
+    nrm = np.cross(P[:, 1] - P[:, 0], P[:, 2] - P[:, 0])
+    size = np.linalg.norm(nrm, axis=1)
+    Q = P.mean(axis=1) + 1e-4 * (nrm / size[:, None]) * np.sqrt(size)[:, None]
+    out_side = np.abs(winding_numbers(Q, V, F)) < 0.5
+    return out_side[np.searchsorted(np.unique(patch), patch)]

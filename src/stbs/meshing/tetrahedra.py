@@ -25,7 +25,12 @@ from ._geometry import (
 from ._pslg import bone_distance
 from ._samples import SkeletonPoints, bone_label, check_bone_samples, fmt_point, sample_skeleton
 from .result import TetMesh
-from .surface import check_surface
+from .surface import (
+    _check_self_intersections,
+    check_surface,
+    exposed_faces,
+    self_intersecting_pairs,
+)
 
 __all__ = ["tetrahedralize", "ENGINES_3D"]
 
@@ -77,7 +82,11 @@ def tetrahedralize(V, F, sk: Skeleton, *, max_volume: float | None = None,
         installed, falling back to builtin with a ``UserWarning`` when TetGen
         fails on a surface that passed the checks.
     self_intersections : bool, keyword-only
-        Check the surface for self-intersections first (default True).
+        Check the surface for self-intersections first (default True). TetGen cannot
+        mesh a self-intersecting surface (it fails, or crashes its process): with
+        ``engine="auto"`` or ``"builtin"`` the builtin mesher then meshes the inside,
+        by winding number, with a ``UserWarning`` saying so; with ``"tetgen"`` it is
+        an error. False: no check (TetGen failures still fall back under ``"auto"``).
     clip_skeleton : bool, keyword-only
         False (default): a joint or bone sample outside the surface, or a bone
         crossing it, is an error that gives the distance. True: mesh only the
@@ -146,7 +155,25 @@ def tetrahedralize(V, F, sk: Skeleton, *, max_volume: float | None = None,
     counts = check_bone_samples(bone_samples, sk)
     if engine == "tetgen":
         _optional.require("tetgen")  # before the work, not after it
-    V, F = check_surface(V, F, self_intersections=self_intersections)
+    V, F = check_surface(V, F, self_intersections=False)
+    boundary = None      # a self-intersecting surface: its uncut triangles on the boundary
+    if self_intersections:
+        try:
+            _check_self_intersections(V, F)
+        except ValueError as exc:
+            if engine == "tetgen":
+                raise ValueError(f"{exc}; or pass engine='auto' or 'builtin', which meshes "
+                                 "the inside by winding number") from None
+            # The builtin mesher copes: the lattice is kept by winding number, the
+            # tetrahedra by their side of the nearest triangle on the boundary.
+            warnings.warn(f"tetrahedralize: {str(exc).split(' — ')[0]}; TetGen cannot mesh "
+                          "it, so the builtin mesher meshes the inside by winding number",
+                          UserWarning, stacklevel=2)
+            engine = "builtin"
+            pairs = self_intersecting_pairs(V, F)
+            # Trusted for the side test: triangles on the boundary, crossed by none.
+            boundary = exposed_faces(V, F, *pairs)
+            boundary[np.concatenate(pairs)] = False
     if sk.dim != 3:
         raise ValueError(f"sk must be a 3-D skeleton for a 3-D surface, got a {sk.dim}-D one "
                          "(C has 2 columns); use triangulate_2d for 2-D shapes")
@@ -156,7 +183,7 @@ def tetrahedralize(V, F, sk: Skeleton, *, max_volume: float | None = None,
         spacing = min(spacing, (6.0 * np.sqrt(2.0) * max_volume) ** (1 / 3))  # regular tet
     sp = sample_skeleton(sk, spacing, counts)
     sp, joint_vertex = _skeleton_inside(V, F, sk, sp, n=V.shape[0], clip=clip_skeleton,
-                                        margin=0.1 * spacing)
+                                        margin=0.1 * spacing, faces=boundary is None)
     if engine == "auto":
         engine = "tetgen" if _optional.available("tetgen") else "builtin"
         if engine == "tetgen":
@@ -170,14 +197,16 @@ def tetrahedralize(V, F, sk: Skeleton, *, max_volume: float | None = None,
     if engine == "tetgen":
         return _tetgen(V, F, sk, sp, joint_vertex, max_volume, max_radius_edge,
                        keep_surface)
-    return _lattice(V, F, sk, sp, joint_vertex, max_volume, mean_edge)
+    return _lattice(V, F, sk, sp, joint_vertex, max_volume, mean_edge, boundary)
 
 
 def _skeleton_inside(V, F, sk: Skeleton, sp: SkeletonPoints, *, n: int, clip: bool,
-                     margin: float) -> tuple[SkeletonPoints, np.ndarray]:
+                     margin: float, faces: bool = True) -> tuple[SkeletonPoints, np.ndarray]:
     """The skeleton points to insert and every joint's vertex (-1: left out).
 
-    Without ``clip``, any point outside the surface or bone crossing it is an error.
+    Without ``clip``, any point outside the surface, or (``faces``) a bone crossing
+    one of its triangles, is an error. A self-intersecting surface has triangles
+    inside the shape, so there only the points' winding numbers count.
     """
     from ._kernels import SurfaceIndex, winding_numbers
 
@@ -225,7 +254,7 @@ def _skeleton_inside(V, F, sk: Skeleton, sp: SkeletonPoints, *, n: int, clip: bo
                          "parts inside")
     A, B = sk.A, sk.B
     P = V[F]
-    for i in range(sk.n_bones):
+    for i in range(sk.n_bones if faces else 0):
         hit = segment_hits_triangle(A[i], B[i], P[:, 0], P[:, 1], P[:, 2])
         if hit.any():
             f = int(np.argmax(hit))
@@ -289,7 +318,7 @@ def _tetgen(V, F, sk, sp, joint_vertex, max_volume, max_radius_edge, keep_surfac
     return _finish(Vt, T, V, F, sk, sp, joint_vertex, n, "tetgen")
 
 
-def _lattice(V, F, sk, sp, joint_vertex, max_volume, mean_edge) -> TetMesh:
+def _lattice(V, F, sk, sp, joint_vertex, max_volume, mean_edge, boundary=None) -> TetMesh:
     from scipy.sparse import coo_array
     from scipy.sparse.csgraph import connected_components
 
@@ -340,16 +369,32 @@ def _lattice(V, F, sk, sp, joint_vertex, max_volume, mean_edge) -> TetMesh:
     keep &= cKDTree(sp.X).query(Lp)[0] > 0.5 * h  # room around the skeleton samples
     X = np.vstack([V, sp.X, Lp[keep]])
     T = Delaunay(X).simplices.astype(np.int64)
-    T = T[np.abs(tet_volumes(X, T)) > 1e-12 * scale_of(V) ** 3]
+    # Flat tetrahedra (Delaunay's on coplanar points) by their own size, not the
+    # shape's: a detailed surface has tetrahedra 1e-12 of the shape's size cubed.
+    Pt = X[T]
+    longest = np.max([np.linalg.norm(Pt[:, i] - Pt[:, j], axis=1)
+                      for i, j in ((0, 1), (0, 2), (0, 3), (1, 2), (1, 3), (2, 3))], axis=0)
+    T = T[np.abs(tet_volumes(X, T)) > 1e-12 * longest ** 3]
     # Inside or out by the centroid: its side of the nearest surface point.
     Q = X[T]
     cen = Q.mean(axis=1)
     reach = np.linalg.norm(Q - cen[:, None], axis=2).max(axis=1)
+    doubt = np.zeros(T.shape[0], dtype=bool)
+    if boundary is not None and not boundary.all():
+        # A self-intersecting surface: near its crossed or inner triangles the nearest
+        # triangle's side says nothing; the winding number decides there.
+        d2, _ = SurfaceIndex(V, F[~boundary]).closest_side(cen, reach)
+        doubt = np.isfinite(d2)
+        if boundary.any():
+            index = SurfaceIndex(V, F[boundary])
     dist, side = index.closest_side(cen, reach)
+    if boundary is not None and not boundary.any():
+        dist[:], side[:] = np.inf, 0
     interior = (T >= n).any(axis=1)
     # No surface within reach: the tetrahedron does not meet it, and has an interior
     # vertex (a surface vertex would be within reach) so it is inside.
     inside = (side < 0) | (np.isinf(dist) & interior) | ((side == 0) & interior)
+    inside[doubt] = np.abs(winding_numbers(cen[doubt], V, F)) > 0.5
     depth = np.full(dist.shape, np.inf)
     fin = np.isfinite(dist)
     depth[fin] = -side[fin] * dist[fin]
