@@ -271,6 +271,19 @@ def test_self_intersection():
     check_surface(V, F, self_intersections=False)
 
 
+def test_builtin_keeps_detail_far_below_the_shape_size():
+    # A pebble 1e-4 the size of the shape: its tetrahedra are 1e-12 of the shape's
+    # size cubed, yet not flat (a flatness test by the shape's size lost them).
+    V1, F1 = icosphere(2, radius=100.0)
+    V2, F2 = icosphere(2, radius=0.01, center=(50.0, 0.0, 0.0))
+    V, F = np.vstack([V1, V2]), np.vstack([F1, F2 + len(V1)])
+    sk = stbs.Skeleton([[-50.0, 0, 0], [0.0, 0, 0]], [[0, 1]])
+    m = tetrahedralize(V, F, sk, engine="builtin", self_intersections=False)
+    check_tetmesh(m, sk, V, volume=enclosed_volume(V, F), rel=0.02)
+    pebble = np.isin(m.T, np.arange(len(V1), len(V))).any(axis=1)
+    assert pebble.any()
+
+
 def test_self_intersecting_surface_meshed_by_winding_number():
     # Two overlapping spheres, one surface: TetGen cannot mesh it; the builtin mesher
     # fills the union, the bones crossing the inner sheets.
