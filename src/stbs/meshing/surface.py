@@ -138,8 +138,8 @@ def _check_manifold_vertices(V, F, H, inv) -> None:
                          f"fans of triangles (non-manifold: two sheets touch there); {_REPAIR}")
 
 
-def _check_self_intersections(V, F) -> None:
-    s, t = self_intersecting_pairs(V, F)
+def _check_self_intersections(V, F, pairs=None) -> None:
+    s, t = self_intersecting_pairs(V, F) if pairs is None else pairs
     if s.size:
         C = V[F].mean(axis=1)
         raise ValueError(f"F: triangles {s[0]} and {t[0]} intersect near "

@@ -158,8 +158,9 @@ def tetrahedralize(V, F, sk: Skeleton, *, max_volume: float | None = None,
     V, F = check_surface(V, F, self_intersections=False)
     boundary = None      # a self-intersecting surface: its uncut triangles on the boundary
     if self_intersections:
+        pairs = self_intersecting_pairs(V, F)
         try:
-            _check_self_intersections(V, F)
+            _check_self_intersections(V, F, pairs)
         except ValueError as exc:
             if engine == "tetgen":
                 raise ValueError(f"{exc}; or pass engine='auto' or 'builtin', which meshes "
@@ -170,7 +171,6 @@ def tetrahedralize(V, F, sk: Skeleton, *, max_volume: float | None = None,
                           "it, so the builtin mesher meshes the inside by winding number",
                           UserWarning, stacklevel=2)
             engine = "builtin"
-            pairs = self_intersecting_pairs(V, F)
             # Trusted for the side test: triangles on the boundary, crossed by none.
             boundary = exposed_faces(V, F, *pairs)
             boundary[np.concatenate(pairs)] = False
