@@ -156,7 +156,7 @@ def tetrahedralize(V, F, sk: Skeleton, *, max_volume: float | None = None,
     if engine == "tetgen":
         _optional.require("tetgen")  # before the work, not after it
     V, F = check_surface(V, F, self_intersections=False)
-    boundary = None      # a self-intersecting surface: its uncut triangles on the boundary
+    boundary = None      # self-intersecting: (uncut triangles on the boundary, crossed ones)
     if self_intersections:
         pairs = self_intersecting_pairs(V, F)
         try:
@@ -171,9 +171,9 @@ def tetrahedralize(V, F, sk: Skeleton, *, max_volume: float | None = None,
                           "it, so the builtin mesher meshes the inside by winding number",
                           UserWarning, stacklevel=2)
             engine = "builtin"
-            # Trusted for the side test: triangles on the boundary, crossed by none.
-            boundary = exposed_faces(V, F, *pairs)
-            boundary[np.concatenate(pairs)] = False
+            cut = np.zeros(F.shape[0], dtype=bool)
+            cut[np.concatenate(pairs)] = True
+            boundary = (exposed_faces(V, F, *pairs) & ~cut, cut)
     if sk.dim != 3:
         raise ValueError(f"sk must be a 3-D skeleton for a 3-D surface, got a {sk.dim}-D one "
                          "(C has 2 columns); use triangulate_2d for 2-D shapes")
@@ -379,22 +379,29 @@ def _lattice(V, F, sk, sp, joint_vertex, max_volume, mean_edge, boundary=None) -
     Q = X[T]
     cen = Q.mean(axis=1)
     reach = np.linalg.norm(Q - cen[:, None], axis=2).max(axis=1)
-    doubt = np.zeros(T.shape[0], dtype=bool)
-    if boundary is not None and not boundary.all():
-        # A self-intersecting surface: near its crossed or inner triangles the nearest
-        # triangle's side says nothing; the winding number decides there.
-        d2, _ = SurfaceIndex(V, F[~boundary]).closest_side(cen, reach)
-        doubt = np.isfinite(d2)
-        if boundary.any():
-            index = SurfaceIndex(V, F[boundary])
-    dist, side = index.closest_side(cen, reach)
-    if boundary is not None and not boundary.any():
-        dist[:], side[:] = np.inf, 0
+    near_cut = near_inner = np.zeros(T.shape[0], dtype=bool)
+    if boundary is not None:
+        # A self-intersecting surface: an inner triangle (a sheet inside another) has
+        # the inside on both sides, and a crossed one says nothing by its side; only
+        # the boundary's uncut triangles are asked, the winding number near crossings.
+        on, cut = boundary
+
+        def near(mask):
+            return np.isfinite(SurfaceIndex(V, F[mask]).closest_side(cen, reach)[0]) \
+                if mask.any() else np.zeros(T.shape[0], dtype=bool)
+
+        near_cut, near_inner = near(cut), near(~on & ~cut)
+        index = SurfaceIndex(V, F[on]) if on.any() else None
+    if index is not None:
+        dist, side = index.closest_side(cen, reach)
+    else:
+        dist, side = np.full(T.shape[0], np.inf), np.zeros(T.shape[0], dtype=np.int64)
     interior = (T >= n).any(axis=1)
     # No surface within reach: the tetrahedron does not meet it, and has an interior
     # vertex (a surface vertex would be within reach) so it is inside.
     inside = (side < 0) | (np.isinf(dist) & interior) | ((side == 0) & interior)
-    inside[doubt] = np.abs(winding_numbers(cen[doubt], V, F)) > 0.5
+    inside[near_inner & np.isinf(dist)] = True
+    inside[near_cut] = np.abs(winding_numbers(cen[near_cut], V, F)) > 0.5
     depth = np.full(dist.shape, np.inf)
     fin = np.isfinite(dist)
     depth[fin] = -side[fin] * dist[fin]
