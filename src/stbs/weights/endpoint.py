@@ -246,8 +246,9 @@ def heat_endpoint(V, F, sk: Skeleton, *, W=None, threshold: float | None = DEFAU
     stand_in = _joints_inside(V, F, sk)
     if W is None or threshold is None:
         C = sk.C.copy()
-        for (k, _), x in stand_in.items():     # the first bone's stand-in for a joint
-            C[k] = x if np.array_equal(C[k], sk.C[k]) else C[k]
+        for (k, _), x in stand_in.items():
+            if np.array_equal(C[k], sk.C[k]):  # the first bone's stand-in for a joint
+                C[k] = x
         J, _ = solver.solve(C, labels=labels)
         used = np.unique(F)
         E[used] = joints_to_endpoint(J[used], sk)
@@ -497,7 +498,7 @@ def bbw_endpoint(V, sk: Skeleton, *, T=None, F=None, W=None,
         if joints or sys.exc_info()[0] is not None:   # else: said per bone, below
             _warn_nearest(far)
     nearest: dict[int, str] = {}
-    outside = set() if joints else {k for k in far if not _in_elements(V, El, sk.C[k])}
+    outside: dict[int, bool] = {}     # joints with no vertex: outside the mesh? (lazily)
     if joints and not restrict:
         # One solve for all joints on the whole mesh, then eq. 7.
         bidx = cand
@@ -525,7 +526,9 @@ def bbw_endpoint(V, sk: Skeleton, *, T=None, F=None, W=None,
                 # A joint with no vertex on it: its nearest vertex stands in, unless the
                 # joint lies outside the mesh and the bone has vertices of its own (a
                 # mesh built with the skeleton clipped to the shape: e = t suffices).
-                if k not in far or not (own and k in outside):
+                if k in far and own and k not in outside:
+                    outside[k] = not _in_elements(V, El, sk.C[k])
+                if k not in far or not (own and outside[k]):
                     val[jv[k]] = value
                     if k in far:
                         nearest[k] = far[k]
