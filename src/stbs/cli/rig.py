@@ -16,7 +16,9 @@ Turn a bare mesh and skeleton into a complete STBS rig (paper §2.3, §3):
      re-triangulated with the bones as constrained segments, a closed 3D surface is
      tetrahedralized with the joints and bone samples inserted (--tets auto), or a
      tetrahedral mesh is read (--tets FILE, surface vertices first, as in libigl's
-     .mesh files); bone heat (--bone heat) works on the 3D surface itself;
+     .mesh files); bone heat (--bone heat) works on the 3D surface itself.
+     A skeleton poking out of the shape is an error unless --clip-skeleton; a
+     self-intersecting surface is meshed by the builtin mesher (by winding number);
   2. bone weights W: bounded biharmonic weights or bone heat;
   3. endpoint weights E: projection (eq. 8), idw (eq. 9), heat, bbw (direct) or
      bbw-joints, each solved only where the bone's weight exceeds 1e-7.
