@@ -67,8 +67,8 @@ def check_skeleton_inside(out: Outline, sk: Skeleton) -> None:
         raise ValueError(f"sk: {who} at {fmt_point(sk.C[j])} outside the outline; the skeleton "
                          "must lie inside the shape (move the joint inside, or check that "
                          "the skeleton and the outline use the same coordinates), or pass "
-                         "clip_skeleton=True (stbs rig --clip-skeleton) to mesh only its "
-                         "parts inside")
+                         "clip_skeleton=True (--clip-skeleton on the command line) to mesh "
+                         "only its parts inside")
     A, B = sk.A, sk.B
     Q0, Q1 = P[S[:, 0]], P[S[:, 1]]
     step = max(1, 2_000_000 // max(S.shape[0], 1))
@@ -81,8 +81,8 @@ def check_skeleton_inside(out: Outline, sk: Skeleton) -> None:
             raise ValueError(f"sk: {bone_label(sk, int(i))} crosses the outline (boundary "
                              f"segment {S[k].tolist()} near {fmt_point((Q0[k] + Q1[k]) / 2)}); "
                              "every bone must lie strictly inside the shape, or pass "
-                             "clip_skeleton=True (stbs rig --clip-skeleton) to mesh only its "
-                             "parts inside")
+                             "clip_skeleton=True (--clip-skeleton on the command line) to "
+                             "mesh only its parts inside")
     # Bones may meet only at shared joints (and not run along each other there).
     i, k = np.triu_indices(sk.n_bones, 1)
     share = (sk.BE[i, :, None] == sk.BE[k, None, :]).any(axis=(1, 2))

@@ -91,8 +91,8 @@ def tetrahedralize(V, F, sk: Skeleton, *, max_volume: float | None = None,
         False (default): a joint or bone sample outside the surface, or a bone
         crossing it, is an error that gives the distance. True: mesh only the
         skeleton's parts inside the shape, for rigs whose bone tips poke out of the
-        skin. Joints and samples outside the surface or closer to it than a tenth of
-        the sample spacing are left out (with a ``UserWarning`` that counts them and
+        skin. Joints and samples outside the surface, and samples closer to it than a
+        tenth of the sample spacing, are left out (with a ``UserWarning`` that counts them and
         gives the farthest distance); a left-out joint has ``joint_vertex`` -1. A bone
         with no point left inside is still an error, naming the bone.
 
@@ -214,7 +214,8 @@ def _skeleton_inside(V, F, sk: Skeleton, sp: SkeletonPoints, *, n: int, clip: bo
     size = scale_of(V)
     if clip:
         dist, _ = SurfaceIndex(V, F).closest_side(sp.X, np.inf)
-        keep = inside & (dist >= margin)
+        joint = np.arange(sp.X.shape[0]) < sk.n_joints
+        keep = inside & ((dist >= margin) | joint)   # joints inside stay, as without clip
         lost = ~keep
         if lost.any():
             has = np.zeros(sk.n_bones, dtype=bool)
@@ -226,8 +227,8 @@ def _skeleton_inside(V, F, sk: Skeleton, sp: SkeletonPoints, *, n: int, clip: bo
                 raise ValueError(f"sk: {bone_label(sk, i)} lies outside the surface (none of "
                                  "its points is inside the shape); move the skeleton inside")
             far = np.where(inside, 0.0, dist)[lost].max()
-            warnings.warn(f"tetrahedralize: {int(lost.sum())} skeleton point(s) outside or "
-                          f"within {margin:.3g} of the surface left out "
+            warnings.warn(f"tetrahedralize: {int(lost.sum())} skeleton point(s) outside, or "
+                          f"samples within {margin:.3g} of the surface, left out "
                           f"({int((~keep[:sk.n_joints]).sum())} joint(s)); the farthest is "
                           f"{far:.3g} outside ({100 * far / size:.2g} % of the shape's size)",
                           UserWarning, stacklevel=3)
@@ -250,8 +251,8 @@ def _skeleton_inside(V, F, sk: Skeleton, sp: SkeletonPoints, *, n: int, clip: bo
                          f"{d:.3g} ({100 * d / size:.2g} % of the shape's size; {out.size} "
                          "skeleton point(s) outside); the skeleton must lie inside the shape "
                          "(check that the skeleton and the mesh use the same coordinates), or "
-                         "pass clip_skeleton=True (stbs rig --clip-skeleton) to mesh only its "
-                         "parts inside")
+                         "pass clip_skeleton=True (--clip-skeleton on the command line) to "
+                         "mesh only its parts inside")
     A, B = sk.A, sk.B
     P = V[F]
     for i in range(sk.n_bones if faces else 0):
