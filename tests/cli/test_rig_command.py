@@ -68,7 +68,7 @@ def test_rig_elephant_with_its_tips_clipped(shared_data, tmp_path, capsys):
     assert "no mesh vertex lies on" not in err
     rig = check_rig(out, 6034, 24)
     # Against the weights shipped with the model (libigl's tutorial): same dominant
-    # bone on most of the surface (measured 0.87).
+    # bone on most of the surface (measured 0.86).
     ref = stbs.io.read_dmat(d / "elephant-weights.dmat")
     assert (np.argmax(rig.W, axis=1) == np.argmax(ref, axis=1)).mean() > 0.8
 
