@@ -427,3 +427,19 @@ def test_repr_and_no_warnings():
         warnings.simplefilter("error")
         m = tetrahedralize(V, F, BONE_X, engine="builtin")
     assert "TetMesh(" in repr(m) and m.dim == 3
+
+
+@pytest.mark.parametrize("high, low", [(50, 0), (2**40, 0), (50, -5)])
+def test_unique_rows_is_numpys_row_unique(high, low):
+    # Packed int64 keys (small values) and NumPy's row sort (large or negative ones)
+    # give NumPy's answer: rows in lexicographic order, first indices, inverse, counts.
+    from stbs.meshing._geometry import unique_rows
+
+    A = np.random.default_rng(1).integers(low, high, size=(5000, 3))
+    A[100:200] = A[:100]                       # repeats
+    U, idx, inv, cnt = unique_rows(A)
+    U0, idx0, inv0, cnt0 = np.unique(A, axis=0, return_index=True, return_inverse=True,
+                                     return_counts=True)
+    for got, want in ((U, U0), (idx, idx0), (inv, inv0.ravel()), (cnt, cnt0)):
+        assert np.array_equal(got, want)
+    assert np.array_equal(U[inv], A)

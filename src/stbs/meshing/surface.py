@@ -9,7 +9,7 @@ from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
 from .. import _checks
-from ._geometry import REL_TOL, scale_of, segment_hits_triangle, unique_edges
+from ._geometry import REL_TOL, scale_of, segment_hits_triangle, unique_edges, unique_rows
 from ._samples import fmt_point
 
 __all__ = ["check_surface"]
@@ -96,9 +96,9 @@ def check_surface(V, F, *, self_intersections: bool = True) -> tuple[np.ndarray,
         raise ValueError(f"F: edge {E[k].tolist()} is shared by {cnt[k]} triangles "
                          f"(non-manifold); {_REPAIR}")
     H = np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]])
-    _, dcnt = np.unique(H, axis=0, return_counts=True)
+    Hu, _, _, dcnt = unique_rows(H)
     if dcnt.max() > 1:
-        bad = np.unique(H, axis=0)[np.argmax(dcnt)]
+        bad = Hu[np.argmax(dcnt)]
         tris = np.flatnonzero((H[:, 0] == bad[0]) & (H[:, 1] == bad[1])) % F.shape[0]
         raise ValueError(f"F: triangles {tris[0]} and {tris[1]} both run along edge "
                          f"{bad.tolist()} in the same direction: the orientation is "

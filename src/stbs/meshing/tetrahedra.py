@@ -21,6 +21,7 @@ from ._geometry import (
     scale_of,
     segment_hits_triangle,
     tet_volumes,
+    unique_rows,
 )
 from ._pslg import bone_distance
 from ._samples import SkeletonPoints, bone_label, check_bone_samples, fmt_point, sample_skeleton
@@ -443,7 +444,7 @@ def _peel_slivers(X, T, n, *, min_dihedral_deg: float = 5.0, rounds: int = 8):
         faces = np.concatenate([T[:, [1, 2, 3]], T[:, [0, 3, 2]], T[:, [0, 1, 3]],
                                 T[:, [0, 2, 1]]])
         key = np.sort(faces, axis=1)
-        _, inv, cnt = np.unique(key, axis=0, return_inverse=True, return_counts=True)
+        _, _, inv, cnt = unique_rows(key)
         on_boundary = (cnt[inv.ravel()] == 1).reshape(4, -1).any(axis=0)
         cand = np.flatnonzero(surf & on_boundary)
         cand = cand[_min_dihedral(X, T[cand]) < np.radians(min_dihedral_deg)]

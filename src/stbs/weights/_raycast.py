@@ -188,9 +188,10 @@ class _EmbreeScene:
 def _boundary_edges(F: np.ndarray) -> np.ndarray:
     """(e, 2) edges used by exactly one triangle, oriented as in that triangle."""
     E = np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]])
-    key = np.sort(E, axis=1)
-    _, inv, cnt = np.unique(key, axis=0, return_inverse=True, return_counts=True)
-    return E[cnt[inv.ravel()] == 1]
+    from ..meshing._geometry import unique_rows
+
+    _, _, inv, cnt = unique_rows(np.sort(E, axis=1))
+    return E[cnt[inv] == 1]
 
 
 def _cross2(a: np.ndarray, b: np.ndarray) -> np.ndarray:
