@@ -195,7 +195,7 @@ def exposed_faces(V, F, s: np.ndarray, t: np.ndarray) -> np.ndarray:
     f = F.shape[0]
     cut = np.zeros(f, dtype=bool)
     cut[s] = cut[t] = True
-    E, inv, _ = unique_edges(F)
+    _, inv, _ = unique_edges(F)
     tri = np.tile(np.arange(f), 3)
     # Triangles sharing an edge, neither of them cut, are in one patch.
     order = np.argsort(inv, kind="stable")
@@ -204,10 +204,10 @@ def exposed_faces(V, F, s: np.ndarray, t: np.ndarray) -> np.ndarray:
     G = coo_array((np.ones(int(ok.sum())), (a[ok], b[ok])), shape=(f, f))
     _, patch = connected_components(G, directed=False)
     patch[cut] = patch.max() + 1 + np.arange(int(cut.sum()))   # each cut triangle alone
-    _, rep = np.unique(patch, return_index=True)
+    _, rep, which = np.unique(patch, return_index=True, return_inverse=True)
     P = V[F[rep]]
     nrm = np.cross(P[:, 1] - P[:, 0], P[:, 2] - P[:, 0])
     size = np.linalg.norm(nrm, axis=1)
     Q = P.mean(axis=1) + 1e-4 * (nrm / size[:, None]) * np.sqrt(size)[:, None]
     out_side = np.abs(winding_numbers(Q, V, F)) < 0.5
-    return out_side[np.searchsorted(np.unique(patch), patch)]
+    return out_side[which.ravel()]
