@@ -1,5 +1,7 @@
 """read_skeleton: .tgf and .bf into a validated stbs.Skeleton."""
 
+import warnings
+
 import numpy as np
 import pytest
 
@@ -56,6 +58,16 @@ def test_real_skeletons(shared_data):
     np.testing.assert_array_equal(sk.BE, bf.BE[np.argsort(bf.weight_index)])
     sk = read_skeleton(shared_data / "computer-graphics-kinematics/robot-arm.bf", dim=3)
     assert sk.dim == 3
+
+
+def test_real_point_handles_are_left_out_with_a_warning(shared_data):
+    # FAST's Basset: 3 bones and 2 point handles (weight columns 0 and 1).
+    with pytest.warns(UserWarning, match=r"2 point handle\(s\) .* left out"):
+        sk = read_skeleton(shared_data / "FAST/Basset/bone_roots.bf")
+    assert sk.n_bones == 3
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")        # no handles: no warning
+        read_skeleton(shared_data / "FAST/male/bone_roots.bf")
 
 
 def test_real_point_handles_only_is_an_error(shared_data):

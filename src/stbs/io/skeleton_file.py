@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import warnings
 
 from ..skeleton import Skeleton
 from ._parse import Dim, check_dim, input_path, suffix
@@ -33,7 +34,8 @@ def read_skeleton(path: str | os.PathLike, *, dim: Dim = "auto") -> Skeleton:
         For ``.tgf``: the bones of :func:`read_tgf` in file order (weight column
         ``i`` = ``i``-th bone edge line). For ``.bf``: the bones of
         :func:`read_bf` sorted by weight column (:meth:`BoneForest.skeleton`);
-        point handles (weighted roots) are not bones and are left out.
+        point handles (weighted roots) are not bones and are left out, with a
+        ``UserWarning`` that counts them.
 
     Raises
     ------
@@ -56,6 +58,11 @@ def read_skeleton(path: str | os.PathLike, *, dim: Dim = "auto") -> Skeleton:
                               f"only {bf.handles.size} point handles (weighted roots); "
                               "use read_bf for point handles")
         C, BE = bf.C, bf.BE[bf.bone_order]
+        if bf.handles.size:
+            warnings.warn(f"read_skeleton: {p}: {bf.handles.size} point handle(s) (weighted "
+                          "roots) left out: STBS rigs have bones only, so weights computed "
+                          "for this skeleton have no column for them (read_bf lists them)",
+                          UserWarning, stacklevel=2)
     try:
         return Skeleton(C, BE)
     except ValueError as exc:
