@@ -443,3 +443,22 @@ def test_unique_rows_is_numpys_row_unique(high, low):
     for got, want in ((U, U0), (idx, idx0), (inv, inv0.ravel()), (cnt, cnt0)):
         assert np.array_equal(got, want)
     assert np.array_equal(U[inv], A)
+
+
+def test_candidate_pairs_miss_no_overlapping_bounding_spheres():
+    # Size classes must not lose a pair: against all pairs, on spheres of sizes
+    # spread over three orders of magnitude.
+    from stbs.meshing.surface import _candidate_pairs
+
+    rng = np.random.default_rng(2)
+    C = rng.random((600, 3))
+    R = 0.002 * 10 ** rng.uniform(0, 3, 600)
+    i, j = np.triu_indices(600, 1)
+    overlap = np.linalg.norm(C[i] - C[j], axis=1) <= R[i] + R[j]
+    want = set(map(tuple, np.stack([i[overlap], j[overlap]], axis=1).tolist()))
+    pairs = _candidate_pairs(C, R)
+    assert np.all(pairs[:, 0] < pairs[:, 1])
+    got = set(map(tuple, pairs.tolist()))
+    assert len(got) == len(pairs)                      # no pair twice
+    assert want <= got
+    assert len(got) < 0.5 * i.size                     # and it does prune

