@@ -462,3 +462,16 @@ def test_candidate_pairs_miss_no_overlapping_bounding_spheres():
     assert len(got) == len(pairs)                      # no pair twice
     assert want <= got
     assert len(got) < 0.5 * i.size                     # and it does prune
+
+
+def test_cylinder_quads_are_not_self_intersections(shared_data):
+    # cylinder.obj: flat quads, split in two; neighbouring triangles along the axis
+    # are coplanar and meet at a vertex. Rounding made them "cross" (347 pairs).
+    mesh = read_mesh(shared_data / "libigl-tutorial-data" / "cylinder.obj")
+    check_surface(mesh.V, mesh.F)
+    sk = stbs.Skeleton([[0, -1.2, 0], [0, 0, 0], [0, 1.2, 0]], [[0, 1], [1, 2]])
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        m = tetrahedralize(mesh.V, mesh.F, sk)
+    check_tetmesh(m, sk, mesh.V, volume=enclosed_volume(mesh.V, mesh.F),
+                  rel=_exact(m.engine))

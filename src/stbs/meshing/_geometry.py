@@ -145,10 +145,18 @@ def segment_hits_triangle(p, q, a, b, c) -> np.ndarray:
     """Whether closed segments ``p q`` meet triangles ``a b c`` (broadcast, (..., 3)).
 
     A touch counts. Coplanar configurations are reported as no hit (the callers
-    use this on generic data: a bone against a surface, or two surface triangles).
+    use this on generic data: a bone against a surface, or two surface triangles),
+    coplanar to rounding included: an end within ``1e-12`` relative of the
+    triangle's plane is on it (two coplanar triangles of a cylinder's flat quads,
+    meeting at a vertex, were once reported as crossing).
     """
     sp = orient3d(a, b, c, p)
     sq = orient3d(a, b, c, q)
+    area2 = np.linalg.norm(np.cross(b - a, c - a), axis=-1)
+    reach = np.maximum(np.linalg.norm(p - a, axis=-1), np.linalg.norm(q - a, axis=-1))
+    flat = 1e-12 * area2 * np.maximum(reach, np.linalg.norm(b - a, axis=-1))
+    sp = np.where(np.abs(sp) <= flat, 0.0, sp)
+    sq = np.where(np.abs(sq) <= flat, 0.0, sq)
     straddle = ((sp >= 0) & (sq <= 0)) | ((sp <= 0) & (sq >= 0))
     straddle &= ~((sp == 0) & (sq == 0))
     s1 = orient3d(p, q, a, b)
