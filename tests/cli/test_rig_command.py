@@ -180,6 +180,11 @@ def test_weights_tol_without_bbw_is_an_error(shared_data, tmp_path, capsys):
     assert err == ["stbs weights: error: --tol applies to --bone bbw or --endpoint "
                    "bbw/bbw-joints; got --bone keep --endpoint idw"]
     assert not (tmp_path / "x.npz").exists()
+    assert main(["weights", str(rig_path), "--clip-skeleton", "-o", str(tmp_path / "x.npz")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "--clip-skeleton applies when the bone weights are recomputed" \
+        in err[0]
+    assert not (tmp_path / "x.npz").exists()
 
 
 def test_progress_bars_on_a_terminal(capsys):

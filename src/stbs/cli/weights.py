@@ -36,6 +36,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     from ..io import Rig, load_rig, save_rig
     from ..weights import endpoint_weights
+    from ._errors import CommandError
     from .rig import _Stages, _tol_kw, check_output, compute_weights, resolve_tol
 
     out = check_output(args.output)
@@ -44,6 +45,9 @@ def run(args: argparse.Namespace) -> int:
     rig = st.run("read rig", load_rig, args.rig)
     sk = rig.skeleton
     if args.bone == "keep":
+        if args.clip_skeleton:
+            raise CommandError("--clip-skeleton applies when the bone weights are "
+                               "recomputed with --bone bbw (the mesh is meshed again)")
         W = rig.W
         if args.endpoint in ("projection", "idw"):
             E = st.run(f"endpoint weights ({args.endpoint})", endpoint_weights, rig.V, sk,
