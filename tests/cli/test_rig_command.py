@@ -208,3 +208,87 @@ def test_progress_bars_on_a_terminal(capsys):
     st.run("again", bone_weights, V, sk, F=F, bar=True)
     assert capsys.readouterr().err == ""
     assert [label for label, _ in st.times] == ["bone weights (bbw)", "again"]
+
+
+def _bar_picture(tmp_path):
+    """A 200x120 RGBA picture of a bar (alpha 255 on columns 21..179, rows 36..84) and
+    a skeleton along it in pixel units, y up, whose last joint is 15 px past its end."""
+    Image = pytest.importorskip("PIL.Image")
+    H, W = 120, 200
+    yy, xx = np.mgrid[:H, :W]
+    img = np.zeros((H, W, 4), np.uint8)
+    img[..., 0] = 200
+    img[..., 3] = ((np.abs(xx - 100) < 80) & (np.abs(yy - 60) < 25)) * 255
+    png = tmp_path / "bar.png"
+    Image.fromarray(img).save(png)
+    tgf = tmp_path / "bar.tgf"
+    tgf.write_text("1 40 59 0\n2 100 59 0\n3 195 59 0\n#\n1 2\n2 3\n#\n")
+    return png, tgf
+
+
+def test_rig_from_a_picture(tmp_path, capsys):
+    png, tgf = _bar_picture(tmp_path)
+    out = tmp_path / "bar.npz"
+    args = ["rig", str(png), str(tgf), "-o", str(out)]
+    assert main(args) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "joint 2 at (195, 59) outside the outline" in err[0]
+    assert main([*args, "--clip-skeleton"]) == 0
+    err = capsys.readouterr().err
+    assert "read image" in err and "trace outline" in err
+    rig = stbs.load_rig(out)
+    n = rig.V.shape[0]
+    assert rig.V.shape[1] == 2 and rig.T is None and 1000 < n < 10_000
+    check_rig(out, n, 2)
+    # The traced bar: x in [20.5, 179.5], y in [34.5, 83.5] (y = 119 - row, edges at
+    # half pixels).
+    np.testing.assert_allclose(rig.V.min(axis=0), [20.5, 34.5], atol=0.01)
+    np.testing.assert_allclose(rig.V.max(axis=0), [179.5, 83.5], atol=0.01)
+    # Bone 0's start holds it; e grows along bone 1 to the bar's end.
+    a = np.argmin(np.linalg.norm(rig.V - [40, 59], axis=1))
+    assert rig.W[a, 0] == pytest.approx(1.0)
+    mid = np.abs(rig.V[:, 1] - 59) < 1e-9                # the vertices on the skeleton
+    x, e = rig.V[mid, 0], rig.E[mid, 1]
+    order = np.argsort(x)
+    along = (x[order] > 100) & (x[order] < 170)     # bone 1 inside the bar: e = t there
+    np.testing.assert_allclose(e[order][along], (x[order][along] - 100) / 95, atol=1e-6)
+    assert e[np.argmax(x)] > 0.75          # ~t = 0.83 where the bar ends
+
+
+def test_rig_from_a_poly_file_and_max_area(tmp_path):
+    poly = tmp_path / "square.poly"
+    poly.write_text("4 2 0 0\n1 0 0\n2 4 0\n3 4 2\n4 0 2\n4 0\n1 1 2\n2 2 3\n3 3 4\n4 4 1\n0\n")
+    tgf = tmp_path / "sq.tgf"
+    tgf.write_text("1 0.5 1 0\n2 2 1 0\n3 3.5 1 0\n#\n1 2\n2 3\n#\n")
+    out = tmp_path / "sq.npz"
+    assert main(["rig", str(poly), str(tgf), "-o", str(out), "--max-area", "0.01"]) == 0
+    rig = stbs.load_rig(out)
+    check_rig(out, rig.V.shape[0], 2)
+    P = rig.V[rig.F]
+    u, v = P[:, 1] - P[:, 0], P[:, 2] - P[:, 0]
+    area = 0.5 * np.abs(u[:, 0] * v[:, 1] - u[:, 1] * v[:, 0])
+    assert area.max() <= 0.01 * (1 + 1e-9) and area.sum() == pytest.approx(8.0)
+
+
+@pytest.mark.parametrize("case, extra, match", [
+    ("obj", ["--threshold", "0.3"], "--threshold and --invert apply to an image MESH"),
+    ("obj", ["--max-area", "1"], "--max-area applies to an outline MESH"),
+    ("png", ["--bone", "heat"], "--bone heat needs a 3D surface; an outline"),
+    ("png", ["--max-area", "0"], "--max-area: expected a positive number"),
+    ("png", ["--threshold", "1"], "no shape found"),
+    ("fake", [], "not a readable image"),
+])
+def test_rig_outline_errors(shared_data, tmp_path, capsys, case, extra, match):
+    png, tgf = _bar_picture(tmp_path)
+    if case == "obj":
+        d = shared_data / "fast_support_reduction"
+        mesh, sk = d / "cantilever_S.obj", d / "cantilever_S.tgf"
+    elif case == "fake":
+        mesh, sk = tmp_path / "fake.png", tgf
+        mesh.write_text("not a picture")
+    else:
+        mesh, sk = png, tgf
+    code = main(["rig", str(mesh), str(sk), "-o", str(tmp_path / "x.npz"), *extra])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and len(err) == 1 and match in err[0], err
+    assert not (tmp_path / "x.npz").exists()

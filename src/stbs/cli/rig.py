@@ -25,11 +25,17 @@ Turn a bare mesh and skeleton into a complete STBS rig (paper §2.3, §3):
 The BBW solves stop at a KKT residual of --tol (default 1e-6, weights within about
 1e-5 of the exact solution; --tol 1e-10 for the exact one).
 The rig keeps your mesh's vertices and faces in their order (weights of the inserted
-vertices are dropped) and is written atomically. Time per stage is printed on stderr."""
+vertices are dropped) and is written atomically. Time per stage is printed on stderr.
+A 2D shape may also come as an outline, and the rig then keeps stbs's triangle mesh:
+a Triangle .poly file, or an image (paper §4, Fig. 12) whose shape, alpha above
+--threshold (or luma; --invert for dark on light), is traced. Image coordinates are
+pixels with y up: pixel (row r, column c) of an H-row image is at (c, H - 1 - r), and
+the skeleton is given in them."""
 EPILOG = f"""examples:
   {EXAMPLE}
   stbs rig woody.obj woody.tgf -o woody.npz            # 2D: bbw + bbw endpoint weights
-  stbs rig arm.obj arm.tgf -o arm.npz --bone heat --endpoint heat"""
+  stbs rig arm.obj arm.tgf -o arm.npz --bone heat --endpoint heat
+  stbs rig drawing.png drawing.tgf -o drawing.npz --clip-skeleton   # 2D, from a picture"""
 
 BONE = ("bbw", "heat")
 ENDPOINT = ("bbw", "bbw-joints", "heat", "projection", "idw")
@@ -68,7 +74,9 @@ def resolve_tol(tol: float | None, bone: str, endpoint: str) -> float:
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("mesh", metavar="MESH", help="rest mesh: .obj .off .ply .stl .mesh .msh .vtk")
+    p.add_argument("mesh", metavar="MESH",
+                   help="rest mesh: .obj .off .ply .stl .mesh .msh .vtk; or a 2D outline: a "
+                        "Triangle .poly file, or an image (.png .jpg ...) whose shape is traced")
     p.add_argument("skeleton", metavar="SKELETON", help="skeleton: .tgf .bf")
     p.add_argument("-o", "--output", required=True, metavar="RIG.npz", help="output rig (.npz)")
     p.add_argument("--bone", choices=BONE, default="bbw", help="bone weights (default: bbw)")
@@ -77,6 +85,16 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--tets", default="auto", metavar="auto|FILE",
                    help="3D bbw: tetrahedralize the surface (auto) or read tets from FILE")
     add_clip_argument(p)
+    p.add_argument("--threshold", type=float, default=None, metavar="T",
+                   help="image MESH: the shape is where alpha (or, without alpha, the luma) "
+                        "exceeds T, in [0, 1] (default 0.5)")
+    p.add_argument("--max-area", type=float, default=None, metavar="A",
+                   help="outline MESH: largest triangle area, in the outline's units (pixels "
+                        f"squared for an image; default: the shape's area / "
+                        f"{OUTLINE_TRIANGLES})")
+    p.add_argument("--invert", action="store_true",
+                   help="image MESH: the shape is where the value is below --threshold (a "
+                        "dark shape on a light background)")
     add_tol_argument(p)
 
 
@@ -122,10 +140,13 @@ class _Stages:
 
 
 def compute_weights(st: _Stages, V, F, T, sk, *, bone: str, endpoint: str, tets: str,
-                    mesh_name: str, tol: float = DEFAULT_TOL, clip_skeleton: bool = False):
+                    mesh_name: str, tol: float = DEFAULT_TOL, clip_skeleton: bool = False,
+                    meshed: bool = False):
     """Bone and endpoint weights (n, b) of the rest mesh (V, F, T); see DESCRIPTION.
 
-    Returns W, E and whether the rig keeps the mesh's own tetrahedra.
+    ``meshed``: a 2D (V, F) that stbs triangulated with the bones inside already (from
+    an outline), used as it is. Returns W, E and whether the rig keeps the mesh's own
+    tetrahedra.
     """
     from ..io import read_mesh
     from ..meshing import tetrahedralize, triangulate_2d
@@ -143,7 +164,9 @@ def compute_weights(st: _Stages, V, F, T, sk, *, bone: str, endpoint: str, tets:
         W = st.run("bone heat", bone_heat, V, F, sk)
         Vm, Fm, Tm, Wm = V, F, None, W
     else:
-        if V.shape[1] == 2:
+        if V.shape[1] == 2 and meshed:
+            Vm, Fm, Tm = V, F, None
+        elif V.shape[1] == 2:
             if F is None:
                 raise CommandError(f"{mesh_name!r}: a 2D rig needs triangles to take the "
                                    "outline from")
@@ -197,18 +220,100 @@ def check_output(path: str):
     return out
 
 
+#: MESH files that are a 2D shape's outline rather than a mesh: traced or read, then
+#: triangulated with the bones inside; the rig keeps that triangle mesh.
+IMAGE_EXTENSIONS = (".png", ".jpg", ".jpeg", ".bmp", ".gif", ".tif", ".tiff", ".webp")
+OUTLINE_EXTENSIONS = (".poly", *IMAGE_EXTENSIONS)
+#: Triangles an outline is meshed into by default (--max-area = area / this).
+OUTLINE_TRIANGLES = 4000
+
+
+def polygons_area(polygons) -> float:
+    """Area inside closed polygons read with the even-odd rule (holes subtract)."""
+    from ..meshing._geometry import signed_area
+
+    areas = sorted((abs(signed_area(P)) for P in polygons), reverse=True)
+    # Nested loops alternate inside/outside; the outer ones are the largest. Exact for
+    # one level of holes, which is what images and .poly files hold in practice.
+    return max(areas[0] - sum(areas[1:]), 1e-300) if len(areas) > 1 else areas[0]
+
+
+def read_image(path: str):
+    """An image file as an array (H, W[, C]) for :func:`stbs.meshing.outline_from_image`."""
+    import numpy as np
+
+    from ._errors import CommandError
+
+    try:
+        from PIL import Image
+    except ImportError:
+        raise CommandError(f"{path!r}: reading images needs Pillow (pip install pillow; the "
+                           "'demo' extra brings it)") from None
+    try:
+        with Image.open(path) as im:
+            if im.mode not in ("L", "LA", "RGB", "RGBA", "1"):
+                im = im.convert("RGBA" if "A" in im.getbands() else "RGB")
+            return np.asarray(im)
+    except FileNotFoundError:
+        raise CommandError(f"{path!r}: image file not found") from None
+    except OSError as exc:
+        raise CommandError(f"{path!r}: not a readable image ({exc})") from None
+
+
+def read_outline(st: _Stages, path: str, *, threshold: float, invert: bool) -> list:
+    """The polygons of a ``.poly`` file, or of the shape traced in an image."""
+    from ..meshing import outline_from_image, read_polygons
+    from ._errors import CommandError
+
+    if path.lower().endswith(".poly"):
+        return st.run("read polygons", read_polygons, path)
+    image = st.run("read image", read_image, path)
+    polygons = st.run("trace outline", outline_from_image, image, threshold=threshold,
+                      invert=invert)
+    if not polygons:
+        raise CommandError(f"{path!r}: no shape found (nothing above --threshold "
+                           f"{threshold:g}{' with --invert' if invert else ''})")
+    return polygons
+
+
 def run(args: argparse.Namespace) -> int:
     from ..io import Rig, read_mesh, read_skeleton, save_rig
+    from ..meshing import triangulate_2d
+    from ._errors import CommandError
 
     out = check_output(args.output)
     tol = resolve_tol(args.tol, args.bone, args.endpoint)
     st = _Stages()
-    mesh = st.run("read mesh", read_mesh, args.mesh)
-    V, F, T = mesh.V, mesh.F, mesh.T
-    sk = st.run("read skeleton", read_skeleton, args.skeleton, dim=V.shape[1])
+    outline = args.mesh.lower().endswith(OUTLINE_EXTENSIONS)
+    if not outline and (args.threshold is not None or args.invert):
+        raise CommandError("--threshold and --invert apply to an image MESH "
+                           f"({' '.join(IMAGE_EXTENSIONS)}); got {args.mesh!r}")
+    if not outline and args.max_area is not None:
+        raise CommandError(f"--max-area applies to an outline MESH (.poly or an image); got "
+                           f"{args.mesh!r}, whose own vertices are kept")
+    if args.max_area is not None and not (math.isfinite(args.max_area) and args.max_area > 0):
+        raise CommandError(f"--max-area: expected a positive number, got {args.max_area!r}")
+    if outline:
+        if args.bone != "bbw":
+            raise CommandError(f"--bone {args.bone} needs a 3D surface; an outline "
+                               f"({args.mesh!r}) is rigged with --bone bbw")
+        threshold = 0.5 if args.threshold is None else args.threshold
+        polygons = read_outline(st, args.mesh, threshold=threshold, invert=args.invert)
+        sk = st.run("read skeleton", read_skeleton, args.skeleton, dim=2)
+        max_area = args.max_area
+        if max_area is None:    # about OUTLINE_TRIANGLES triangles: a smooth field for BBW
+            max_area = polygons_area(polygons) / OUTLINE_TRIANGLES
+        tri = st.run("triangulate (bones inside)", triangulate_2d, polygons, sk,
+                     max_area=max_area, clip_skeleton=args.clip_skeleton)
+        V, F, T = tri.V, tri.F, None
+    else:
+        mesh = st.run("read mesh", read_mesh, args.mesh)
+        V, F, T = mesh.V, mesh.F, mesh.T
+        sk = st.run("read skeleton", read_skeleton, args.skeleton, dim=V.shape[1])
     W, E, keep_T = compute_weights(st, V, F, T, sk, bone=args.bone, endpoint=args.endpoint,
                                    tets=args.tets, mesh_name=args.mesh, tol=tol,
-                                   clip_skeleton=args.clip_skeleton)
+                                   clip_skeleton=args.clip_skeleton and not outline,
+                                   meshed=outline)
     rig = Rig(V=V, F=F, T=T if keep_T else None, C=sk.C, BE=sk.BE, names=sk.names,
               W=W, E=E, meta={"bone": args.bone, "endpoint": args.endpoint})
     st.run("write rig", save_rig, out, rig)
