@@ -229,13 +229,16 @@ OUTLINE_TRIANGLES = 4000
 
 
 def polygons_area(polygons) -> float:
-    """Area inside closed polygons read with the even-odd rule (holes subtract)."""
-    from ..meshing._geometry import signed_area
+    """Area inside closed polygons read with the even-odd rule: a polygon inside an odd
+    number of the others is a hole and subtracts."""
+    from ..meshing._geometry import points_in_loops, signed_area
 
-    areas = sorted((abs(signed_area(P)) for P in polygons), reverse=True)
-    # Nested loops alternate inside/outside; the outer ones are the largest. Exact for
-    # one level of holes, which is what images and .poly files hold in practice.
-    return max(areas[0] - sum(areas[1:]), 1e-300) if len(areas) > 1 else areas[0]
+    total = 0.0
+    for i, P in enumerate(polygons):
+        others = [Q for k, Q in enumerate(polygons) if k != i]
+        hole = bool(others) and bool(points_in_loops(P[:1], others)[0])
+        total += -abs(signed_area(P)) if hole else abs(signed_area(P))
+    return max(total, 1e-300)
 
 
 def read_image(path: str):
@@ -271,8 +274,8 @@ def read_outline(st: _Stages, path: str, *, threshold: float, invert: bool) -> l
     polygons = st.run("trace outline", outline_from_image, image, threshold=threshold,
                       invert=invert)
     if not polygons:
-        raise CommandError(f"{path!r}: no shape found (nothing above --threshold "
-                           f"{threshold:g}{' with --invert' if invert else ''})")
+        raise CommandError(f"{path!r}: no shape found (nothing "
+                           f"{'below' if invert else 'above'} --threshold {threshold:g})")
     return polygons
 
 
