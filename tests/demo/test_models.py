@@ -7,9 +7,9 @@ from scipy.sparse.csgraph import connected_components
 
 import stbs
 from stbs.demo import models as M
+from stbs.geometry import winding_numbers
 from stbs.meshing import check_surface
 from stbs.meshing._geometry import triangle_angles
-from stbs.meshing._kernels import winding_numbers
 
 MODELS_3D = ["arm", "leg", "torso", "character"]
 MODELS_2D = ["long_necked_animal_2d", "picture_2d"]

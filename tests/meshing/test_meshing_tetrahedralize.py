@@ -18,10 +18,10 @@ from meshing_checks import (
 )
 
 import stbs
+from stbs.geometry import boundary_faces, winding_numbers
 from stbs.io import read_mesh, read_skeleton
 from stbs.meshing import check_surface, tetrahedra, tetrahedralize, triangulate_2d
-from stbs.meshing._geometry import boundary_faces
-from stbs.meshing._kernels import SurfaceIndex, winding_numbers
+from stbs.meshing._kernels import SurfaceIndex
 
 HAS_TETGEN = importlib.util.find_spec("tetgen") is not None
 BONE_X = stbs.Skeleton([[0.2, 0.5, 0.5], [0.5, 0.5, 0.5], [0.8, 0.55, 0.5]], [[0, 1], [1, 2]],
@@ -371,7 +371,7 @@ def test_clip_skeleton_meshes_the_inside_part(engine):
 
 
 def tet_volumes_ok(m) -> bool:
-    from stbs.meshing._geometry import tet_volumes
+    from stbs.geometry import tet_volumes
 
     return bool(tet_volumes(m.V, m.T).min() > 0)
 
@@ -433,7 +433,7 @@ def test_repr_and_no_warnings():
 def test_unique_rows_is_numpys_row_unique(high, low):
     # Packed int64 keys (small values) and NumPy's row sort (large or negative ones)
     # give NumPy's answer: rows in lexicographic order, first indices, inverse, counts.
-    from stbs.meshing._geometry import unique_rows
+    from stbs.geometry import unique_rows
 
     A = np.random.default_rng(1).integers(low, high, size=(5000, 3))
     A[100:200] = A[:100]                       # repeats

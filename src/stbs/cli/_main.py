@@ -1,7 +1,9 @@
 """``stbs``: argument parsing, dispatch and the error contract of DESIGN §6.
 
 Every subcommand lives in its own module with ``NAME``, ``HELP``, ``DESCRIPTION``,
-``EPILOG`` (an example), ``add_arguments(parser)`` and ``run(args) -> int``. The
+``EPILOG`` (an example), ``add_arguments(parser)`` and ``run(args) -> int``, and may
+define ``requires(args)``: the optional modules (import names) that this run needs.
+A missing one is one line naming the extra to install, before any work is done. The
 modules import nothing heavy at the top, so building the parser (``stbs --help``)
 costs no more than importing :mod:`stbs` itself.
 
@@ -9,9 +11,10 @@ Error contract: a problem with the inputs (``ValueError``, including
 :class:`stbs.io.FormatError` and JSON errors, ``TypeError``, ``OSError`` such as a
 missing file or an unwritable output) prints exactly one line
 ``stbs <cmd>: error: <message>`` on stderr and exits with status 2, without a
-traceback; ``--debug`` re-raises instead. Usage errors (unknown option or choice)
-also print one line and exit 2. Warnings raised while a command succeeds are
-printed as ``stbs: warning: <message>``, one line each.
+traceback; ``--debug`` re-raises instead. A missing optional dependency
+(:class:`stbs._optional.OptionalDependencyError`) is reported the same way. Usage
+errors (unknown option or choice) also print one line and exit 2. Warnings raised
+while a command succeeds are printed as ``stbs: warning: <message>``, one line each.
 """
 
 from __future__ import annotations
@@ -22,6 +25,7 @@ import warnings
 from collections.abc import Sequence
 from typing import NoReturn
 
+from .._optional import OptionalDependencyError, missing
 from . import bench as _bench
 from . import deform as _deform
 from . import demo as _demo
@@ -33,7 +37,7 @@ __all__ = ["main", "build_parser", "CommandError"]
 
 PROG = "stbs"
 #: Input problems reported as one line and exit status 2.
-INPUT_ERRORS = (ValueError, TypeError, OSError)
+INPUT_ERRORS = (ValueError, TypeError, OSError, OptionalDependencyError)
 
 
 class _Parser(argparse.ArgumentParser):
@@ -135,6 +139,10 @@ def main(argv: Sequence[str] | None = None) -> int:
             if args._cmd is _bench:
                 code = _bench.run_delegated(extra, debug=debug, parser_class=_Parser)
             else:
+                need = getattr(args._cmd, "requires", None)
+                advice = missing(need(args), f"{prog}") if need else None
+                if advice:
+                    raise OptionalDependencyError(advice)
                 code = args._cmd.run(args)
         except SystemExit as exc:  # a delegated parser's --help or usage error
             return _code(exc)

@@ -17,7 +17,8 @@ The optional engines are imported on first use only; see ``docs/meshing.md`` for
 their licences and the extras that install them.
 """
 
-from .outline import boundary_loops, outline_from_image, read_polygons
+from ..geometry import boundary_loops
+from .outline import outline_from_image, read_polygons
 from .result import TetMesh, TriMesh
 from .surface import check_surface
 from .tetrahedra import ENGINES_3D, tetrahedralize

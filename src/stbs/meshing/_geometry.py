@@ -9,6 +9,17 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..geometry import (  # noqa: F401  (the shared ones, re-exported for the meshers)
+    boundary_faces,
+    cycles,
+    points_in_loops,
+    signed_area,
+    tet_volumes,
+    triangle_areas,
+    unique_edges,
+    unique_rows,
+)
+
 #: Relative tolerance (times the bounding-box diagonal) for "on a segment" and
 #: "coincident" tests.
 REL_TOL = 1e-10
@@ -68,38 +79,6 @@ def project_on_segment(p, a, b) -> tuple[np.ndarray, np.ndarray]:
     return t, np.linalg.norm(p - (a + t[..., None] * ab), axis=-1)
 
 
-def points_in_loops(Q: np.ndarray, loops: list[np.ndarray], *, chunk: int = 2_000_000
-                    ) -> np.ndarray:
-    """Even-odd inclusion of points ``Q`` (q, 2) in the region bounded by ``loops``.
-
-    A point is inside when a ray from it crosses the loops an odd number of times,
-    so holes and islands inside holes need no labels. Points exactly on a loop
-    get either answer.
-    """
-    A = np.concatenate([L for L in loops])
-    B = np.concatenate([np.roll(L, -1, axis=0) for L in loops])
-    inside = np.zeros(Q.shape[0], dtype=bool)
-    step = max(1, chunk // max(A.shape[0], 1))
-    for s in range(0, Q.shape[0], step):
-        q = Q[s:s + step, None, :]
-        straddle = (A[None, :, 1] > q[..., 1]) != (B[None, :, 1] > q[..., 1])
-        dy = np.where(straddle, B[:, 1] - A[:, 1], 1.0)
-        x = A[:, 0] + (q[..., 1] - A[:, 1]) * (B[:, 0] - A[:, 0]) / dy
-        inside[s:s + step] = (np.count_nonzero(straddle & (q[..., 0] < x), axis=1) % 2) == 1
-    return inside
-
-
-def signed_area(P: np.ndarray) -> float:
-    """Signed area of a closed polygon (k, 2); > 0 counter-clockwise (shoelace)."""
-    x, y = P[:, 0], P[:, 1]
-    return 0.5 * float(np.dot(x, np.roll(y, -1)) - np.dot(np.roll(x, -1), y))
-
-
-def triangle_areas(V: np.ndarray, F: np.ndarray) -> np.ndarray:
-    """Signed areas (f,) of 2D triangles; > 0 counter-clockwise."""
-    return 0.5 * orient2d(V[F[:, 0]], V[F[:, 1]], V[F[:, 2]])
-
-
 def triangle_angles(V: np.ndarray, F: np.ndarray) -> np.ndarray:
     """Interior angles (f, 3) in radians, angle k at corner ``F[:, k]`` (2D or 3D)."""
     P = V[F]
@@ -136,11 +115,6 @@ def orient3d(a, b, c, d) -> np.ndarray:
     return np.einsum("...i,...i->...", np.cross(b - a, c - a), d - a)
 
 
-def tet_volumes(V: np.ndarray, T: np.ndarray) -> np.ndarray:
-    """Signed volumes (t,) of tetrahedra; > 0 when ``d`` is on the left of ``a b c``."""
-    return orient3d(V[T[:, 0]], V[T[:, 1]], V[T[:, 2]], V[T[:, 3]]) / 6.0
-
-
 def segment_hits_triangle(p, q, a, b, c) -> np.ndarray:
     """Whether closed segments ``p q`` meet triangles ``a b c`` (broadcast, (..., 3)).
 
@@ -164,78 +138,3 @@ def segment_hits_triangle(p, q, a, b, c) -> np.ndarray:
     s3 = orient3d(p, q, c, a)
     same = ((s1 >= 0) & (s2 >= 0) & (s3 >= 0)) | ((s1 <= 0) & (s2 <= 0) & (s3 <= 0))
     return straddle & same
-
-
-def unique_rows(A: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """``np.unique(A, axis=0)`` of an integer array: ``(rows, index, inverse, counts)``.
-
-    Non-negative rows whose values fit are packed into one int64 key each (the same
-    lexicographic order), which sorts some 15 times faster than NumPy's row sort.
-    """
-    A = np.asarray(A)
-    base = int(A.max()) + 1 if A.size else 1
-    if A.size and A.min() >= 0 and base ** A.shape[1] < 2**62:
-        key = np.zeros(A.shape[0], dtype=np.int64)
-        for j in range(A.shape[1]):
-            key = key * base + A[:, j]
-        _, idx, inv, cnt = np.unique(key, return_index=True, return_inverse=True,
-                                     return_counts=True)
-        return A[idx], idx, inv.ravel(), cnt
-    U, idx, inv, cnt = np.unique(A, axis=0, return_index=True, return_inverse=True,
-                                 return_counts=True)
-    return U, idx, inv.ravel(), cnt
-
-
-def unique_edges(F: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Undirected edges of a triangle or polygon list.
-
-    Returns ``(E, inverse, counts)``: sorted unique edges (e, 2), for each directed
-    half-edge ``(F[:, k], F[:, k+1])`` (stacked k-major) its row in ``E``, and how
-    many half-edges each edge has.
-    """
-    k = F.shape[1]
-    H = np.concatenate([F[:, [i, (i + 1) % k]] for i in range(k)])
-    E, _, inv, cnt = unique_rows(np.sort(H, axis=1))
-    return E, inv, cnt
-
-
-def boundary_faces(T: np.ndarray) -> np.ndarray:
-    """Faces (g, 3) used by exactly one tetrahedron, oriented outwards.
-
-    A positively oriented tetrahedron ``(a, b, c, d)`` has outward faces
-    ``(b, c, d), (a, d, c), (a, b, d), (a, c, b)``.
-    """
-    faces = np.concatenate([T[:, [1, 2, 3]], T[:, [0, 3, 2]], T[:, [0, 1, 3]],
-                            T[:, [0, 2, 1]]])
-    _, idx, _, cnt = unique_rows(np.sort(faces, axis=1))
-    return faces[idx[cnt == 1]]
-
-
-def cycles(succ: np.ndarray) -> list[np.ndarray]:
-    """The cycles of a permutation ``succ`` (m,), each in order from its smallest element.
-
-    Vectorised list ranking (pointer jumping, log2 of the longest cycle rounds): each
-    cycle is cut before its smallest element, then every element learns its distance
-    to the cut.
-    """
-    from scipy.sparse import coo_array
-    from scipy.sparse.csgraph import connected_components
-
-    m = succ.size
-    if m == 0:
-        return []
-    G = coo_array((np.ones(m), (np.arange(m), succ)), shape=(m, m))
-    _, label = connected_components(G, directed=False)
-    start = np.full(label.max() + 1, m, dtype=np.int64)
-    np.minimum.at(start, label, np.arange(m))
-    nxt = succ.astype(np.int64).copy()
-    nxt[np.isin(nxt, start)] = -1  # the element before each start ends its list
-    dist = (nxt >= 0).astype(np.int64)  # steps to the end of the list
-    jump = nxt.copy()
-    while np.any(jump >= 0):
-        ok = jump >= 0
-        dist[ok] += dist[jump[ok]]
-        jump[ok] = jump[jump[ok]]
-    order = np.lexsort((-dist, label))
-    bounds = np.flatnonzero(np.diff(label[order])) + 1
-    return np.split(order, bounds)

@@ -16,6 +16,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from .. import _checks
+from ..geometry import boundary_loops
 from ._geometry import (
     REL_TOL,
     cycles,
@@ -25,63 +26,10 @@ from ._geometry import (
     segments_intersect,
     signed_area,
     triangle_areas,
-    unique_edges,
 )
 from ._samples import fmt_point
 
-__all__ = ["boundary_loops", "outline_from_image", "read_polygons"]
-
-
-# ----------------------------------------------------------------------------- mesh boundary
-
-
-def boundary_loops(F) -> list[np.ndarray]:
-    """Boundary loops of a triangle mesh, as vertex indices.
-
-    Parameters
-    ----------
-    F : (f, 3) int
-        Triangles of a manifold mesh (every edge in one or two triangles).
-
-    Returns
-    -------
-    list of (k,) int64
-        One array per loop, each vertex once, following the boundary edges in the
-        direction the triangles give them (counter-clockwise around the outer
-        boundary of a counter-clockwise 2D mesh, clockwise around its holes).
-        Longest loop first.
-
-    Raises
-    ------
-    ValueError
-        An edge shared by more than two triangles, or a boundary vertex with more
-        than two boundary edges (the mesh is pinched there); the message names them.
-    """
-    F = _checks.index_array("F", F, ndim=2, shape=(None, 3))
-    if F.shape[0] == 0:
-        raise ValueError("F must hold at least one triangle, got shape (0, 3)")
-    E, inv, cnt = unique_edges(F)
-    if cnt.max() > 2:
-        e = E[np.argmax(cnt)]
-        raise ValueError(f"F: edge ({e[0]}, {e[1]}) is shared by {cnt.max()} triangles; "
-                         "a mesh outline needs a manifold mesh (each edge in 1 or 2 triangles)")
-    H = np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]])
-    Hb = H[cnt[inv] == 1]  # directed boundary half-edges
-    if Hb.shape[0] == 0:
-        return []
-    out_deg = np.bincount(Hb[:, 0], minlength=F.max() + 1)
-    if out_deg.max() > 1:
-        v = int(np.argmax(out_deg))
-        raise ValueError(f"F: boundary vertex {v} has {2 * out_deg[v]} boundary edges; the "
-                         "mesh is pinched there (two boundary loops touch), so its outline "
-                         "is not a set of simple polygons")
-    # Boundary vertices, each with one outgoing boundary edge: a permutation.
-    ids = np.sort(Hb[:, 0])
-    succ = np.empty(ids.size, dtype=np.int64)
-    succ[np.searchsorted(ids, Hb[:, 0])] = np.searchsorted(ids, Hb[:, 1])
-    loops = [ids[c] for c in cycles(succ)]
-    loops.sort(key=len, reverse=True)
-    return loops
+__all__ = ["outline_from_image", "read_polygons"]
 
 
 # ----------------------------------------------------------------------------- normalisation

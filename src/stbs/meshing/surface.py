@@ -215,7 +215,7 @@ def exposed_faces(V, F, s: np.ndarray, t: np.ndarray) -> np.ndarray:
     inside (a part of one sheet inside another); one point just outside one triangle
     of a patch decides it. Triangles in a crossing pair are decided one by one.
     """
-    from ._kernels import winding_numbers
+    from ..geometry import winding_numbers
 
     f = F.shape[0]
     cut = np.zeros(f, dtype=bool)

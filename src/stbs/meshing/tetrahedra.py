@@ -209,7 +209,8 @@ def _skeleton_inside(V, F, sk: Skeleton, sp: SkeletonPoints, *, n: int, clip: bo
     one of its triangles, is an error. A self-intersecting surface has triangles
     inside the shape, so there only the points' winding numbers count.
     """
-    from ._kernels import SurfaceIndex, winding_numbers
+    from ..geometry import winding_numbers
+    from ._kernels import SurfaceIndex
 
     inside = np.abs(winding_numbers(sp.X, V, F)) >= 0.5
     size = scale_of(V)
@@ -324,7 +325,8 @@ def _lattice(V, F, sk, sp, joint_vertex, max_volume, mean_edge, boundary=None) -
     from scipy.sparse import coo_array
     from scipy.sparse.csgraph import connected_components
 
-    from ._kernels import SurfaceIndex, winding_numbers
+    from ..geometry import winding_numbers
+    from ._kernels import SurfaceIndex
 
     n = V.shape[0]
     m = n + sp.X.shape[0]
@@ -478,7 +480,7 @@ def _min_dihedral(X, T) -> np.ndarray:
 
 def _finish(X, T, V, F, sk, sp: SkeletonPoints, joint_vertex: np.ndarray, n: int,
             engine: str) -> TetMesh:
-    from ._kernels import winding_numbers
+    from ..geometry import winding_numbers
 
     m = n + sp.X.shape[0]
     if engine == "tetgen" and _components(F) > 1:

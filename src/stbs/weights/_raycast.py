@@ -188,7 +188,7 @@ class _EmbreeScene:
 def _boundary_edges(F: np.ndarray) -> np.ndarray:
     """(e, 2) edges used by exactly one triangle, oriented as in that triangle."""
     E = np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]])
-    from ..meshing._geometry import unique_rows
+    from ..geometry import unique_rows
 
     _, _, inv, cnt = unique_rows(np.sort(E, axis=1))
     return E[cnt[inv] == 1]

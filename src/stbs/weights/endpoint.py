@@ -278,9 +278,7 @@ def _joints_inside(V: np.ndarray, F: np.ndarray, sk: Skeleton) -> dict:
     inside (a 1/128 of the bone further in), warned with the distance; a bone wholly
     outside gets none (and the solve then reports the joint).
     """
-    from ..meshing._geometry import points_in_loops
-    from ..meshing._kernels import winding_numbers
-    from ..meshing.outline import boundary_loops
+    from ..geometry import boundary_loops, points_in_loops, winding_numbers
 
     if V.shape[1] == 3:
         def inside(P):
