@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 
-from stbs.io.shared_data import data_dir
+from shared_data import data_dir
 
 
 @pytest.fixture(scope="session")

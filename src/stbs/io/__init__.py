@@ -29,7 +29,6 @@ from .dmat import read_dmat, write_dmat
 from .errors import FormatError
 from .mesh import MESH_READ_EXTENSIONS, MESH_WRITE_EXTENSIONS, Mesh, read_mesh, write_mesh
 from .rig import RIG_VERSION, Rig, load_rig, save_rig
-from .shared_data import data_dir
 from .skeleton_file import SKELETON_READ_EXTENSIONS, read_skeleton
 from .tgf import read_tgf, write_tgf
 from .weights import WEIGHT_READ_EXTENSIONS, read_weights
@@ -42,5 +41,4 @@ __all__ = [
     "read_dmat", "write_dmat", "read_weights", "WEIGHT_READ_EXTENSIONS",
     "Rig", "save_rig", "load_rig", "RIG_VERSION",
     "atomic_open", "atomic_save", "atomic_write",
-    "data_dir",
 ]

@@ -1,4 +1,5 @@
-"""Where the shared third-party test data lives (``../shared/data``, see its README)."""
+"""Where the third-party test data lives: ``$STBS_DATA``, else ``../shared/data`` beside
+the checkout. Test support only; the library takes paths from its users."""
 
 from __future__ import annotations
 
@@ -20,12 +21,11 @@ def data_dir() -> Path | None:
         ``$STBS_DATA`` when that variable is set and not empty (returned even if
         the folder does not exist, so a wrong setting shows up instead of being
         skipped over); else ``<repo>/../shared/data`` when that folder exists,
-        where ``<repo>`` is the source checkout holding ``src/stbs/io/`` (three
-        levels above this file); else None (e.g. an installed wheel).
+        where ``<repo>`` is the checkout holding this ``tests/`` folder; else None.
     """
     env = os.environ.get(ENV_VAR)
     if env:
         return Path(env).expanduser()
-    repo = Path(__file__).resolve().parents[3]
+    repo = Path(__file__).resolve().parents[1]
     cand = repo.parent / "shared" / "data"
     return cand if cand.is_dir() else None

@@ -2,7 +2,7 @@
 
 from pathlib import Path
 
-from stbs.io import data_dir
+from shared_data import data_dir
 
 
 def test_env_var_wins(monkeypatch, tmp_path):
@@ -18,10 +18,10 @@ def test_env_var_is_returned_even_if_missing(monkeypatch, tmp_path):
 
 def test_repo_relative_default(monkeypatch):
     monkeypatch.delenv("STBS_DATA", raising=False)
-    import stbs.io.shared_data as mod
+    import shared_data as mod
 
-    repo = Path(mod.__file__).resolve().parents[3]
-    assert (repo / "src" / "stbs" / "io").is_dir()
+    repo = Path(mod.__file__).resolve().parents[1]
+    assert (repo / "tests" / "conftest.py").is_file()
     expected = repo.parent / "shared" / "data"
     assert data_dir() == (expected if expected.is_dir() else None)
 
