@@ -4,7 +4,10 @@ Jacobson & Sorkine, "Stretchable and Twistable Bones for Skeletal Shape
 Deformation", SIGGRAPH Asia 2011. DESIGN.md is the contract; names here are stable.
 
 Names are loaded on first use (PEP 562), so ``import stbs`` and ``stbs --help`` stay
-fast and numba is imported only when skinning is first needed.
+fast and numba is imported only when skinning is first needed. Subpackages: the maths
+(:mod:`stbs.geometry`, :mod:`stbs.transforms`, :mod:`stbs.skinning`, :mod:`stbs.weights`,
+:mod:`stbs.meshing`, :mod:`stbs.shapes`), the data (:mod:`stbs.rig`, :mod:`stbs.io`) and
+the front ends (:mod:`stbs.cli`, :mod:`stbs.demo`, :mod:`stbs.bench`).
 """
 
 from __future__ import annotations
@@ -22,10 +25,12 @@ _EXPORTS = {
     "deform": "stbs.skinning",
     "METHODS": "stbs.skinning",
     "endpoint_weights": "stbs.weights",
-    "Rig": "stbs.io",
+    "Rig": "stbs.rig",
+    "build_rig": "stbs.rig",
     "load_rig": "stbs.io",
     "save_rig": "stbs.io",
-    "read_pose": "stbs.posefile",
+    "read_pose": "stbs.io",
+    "write_pose": "stbs.io",
     "bone_heat": "stbs.weights",
     "bone_weights": "stbs.weights",
     "BBWSolver": "stbs.weights",
@@ -38,7 +43,8 @@ _EXPORTS = {
 }
 
 __all__ = ["Skeleton", "Pose", "forward_kinematics", "Deformer", "deform", "METHODS",
-           "endpoint_weights", "Rig", "load_rig", "save_rig", "read_pose", "bone_heat",
+           "endpoint_weights", "Rig", "build_rig", "load_rig", "save_rig", "read_pose",
+           "write_pose", "bone_heat",
            "bone_weights", "BBWSolver", "bbw", "boundary_conditions",
            "SplineFilter", "triangulate_2d", "tetrahedralize", "outline_from_image",
            "__version__"]
@@ -58,10 +64,10 @@ def __dir__() -> list[str]:
 
 
 if TYPE_CHECKING:  # pragma: no cover - for type checkers and IDEs
-    from .io import Rig, load_rig, save_rig
+    from .io import load_rig, read_pose, save_rig, write_pose
     from .meshing import outline_from_image, tetrahedralize, triangulate_2d
     from .pose import Pose, forward_kinematics
-    from .posefile import read_pose
+    from .rig import Rig, build_rig
     from .skeleton import Skeleton
     from .skinning import METHODS, Deformer, deform
     from .weights import (

@@ -33,6 +33,14 @@ def _rotations(name: str, R, b: int, d: int) -> np.ndarray:
     return R
 
 
+def _check_same_skeleton(pose: Pose, other) -> None:
+    if not isinstance(other, Pose):
+        raise TypeError(f"other must be a stbs.Pose, got {type(other).__name__}")
+    if other.skeleton != pose.skeleton:
+        raise ValueError(f"other must be a pose of an equal skeleton (same joints, bones and "
+                         f"names), got {other.skeleton!r} for {pose.skeleton!r}")
+
+
 class Pose:
     """A pose: for each bone a rotation ``R_i``, posed start ``a'_i``, stretch and twist.
 
@@ -159,8 +167,7 @@ class Pose:
         (``other``'s after ``self``'s); stretches multiply and twists add. Composing
         with the rest pose on either side gives the pose back.
         """
-        if not isinstance(other, Pose) or other.skeleton is not self.skeleton:
-            raise ValueError("other must be a Pose of the same Skeleton object")
+        _check_same_skeleton(self, other)
         A = self.skeleton.A
         R = np.einsum("bij,bjk->bik", other.rotations, self.rotations)
         origins = other.origins + np.einsum("bij,bj->bi", other.rotations, self.origins - A)
@@ -173,8 +180,7 @@ class Pose:
         Rotations are slerped along the shortest arc; origins, stretch and twist are
         interpolated linearly (so twists past 360 degrees are kept, not wrapped).
         """
-        if not isinstance(other, Pose) or other.skeleton is not self.skeleton:
-            raise ValueError("other must be a Pose of the same Skeleton object")
+        _check_same_skeleton(self, other)
         t = float(t)
         if not np.isfinite(t):
             raise ValueError(f"t must be finite, got {t}")

@@ -156,6 +156,19 @@ class Skeleton:
             raise ValueError(f"bone {key!r} does not exist; bones are 0..{self.n_bones - 1}")
         return i
 
+    def __eq__(self, other: object) -> bool:
+        """Equal joints (exactly), bones and names: poses of equal skeletons compose."""
+        if self is other:
+            return True
+        if not isinstance(other, Skeleton):
+            return NotImplemented
+        return (self.C.shape == other.C.shape and self.BE.shape == other.BE.shape
+                and bool(np.array_equal(self.C, other.C))
+                and bool(np.array_equal(self.BE, other.BE)) and self.names == other.names)
+
+    def __hash__(self) -> int:
+        return hash((self.C.shape, self.C.tobytes(), self.BE.tobytes(), tuple(self.names)))
+
     def __repr__(self) -> str:
         return (f"Skeleton({self.n_joints} joints, {self.n_bones} bones, {self.dim}D, "
                 f"{self.roots.size} root{'s' if self.roots.size != 1 else ''})")

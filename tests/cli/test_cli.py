@@ -15,8 +15,9 @@ from stbs.cli import main
 from stbs.cli.deform import METHODS as CLI_METHODS
 from stbs.cli.deform import boundary_faces
 from stbs.demo import bar
-from stbs.io import Rig, read_mesh, save_rig, write_dmat, write_mesh, write_tgf
-from stbs.posefile import read_pose
+from stbs import Rig
+from stbs.io import read_mesh, save_rig, write_dmat, write_mesh, write_tgf
+from stbs.io import read_pose
 from stbs.weights.endpoint import projection
 
 POSE = {"rotate": {"lower": {"axis": [0, 0, 1], "angle": 60}},

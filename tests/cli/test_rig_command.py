@@ -292,15 +292,3 @@ def test_rig_outline_errors(shared_data, tmp_path, capsys, case, extra, match):
     err = capsys.readouterr().err.strip().splitlines()
     assert code == 2 and len(err) == 1 and match in err[0], err
     assert not (tmp_path / "x.npz").exists()
-
-
-def test_outline_area_for_the_default_mesh_size():
-    # Two separate shapes add up; a hole subtracts; an island in the hole adds again.
-    from stbs.cli.rig import polygons_area
-
-    def sq(x0, y0, s):
-        return np.array([[x0, y0], [x0 + s, y0], [x0 + s, y0 + s], [x0, y0 + s]], float)
-
-    assert polygons_area([sq(0, 0, 10), sq(20, 0, 2)]) == pytest.approx(104)
-    assert polygons_area([sq(0, 0, 10), sq(2, 2, 6)[::-1]]) == pytest.approx(64)
-    assert polygons_area([sq(0, 0, 10), sq(2, 2, 6), sq(4, 4, 2)]) == pytest.approx(68)

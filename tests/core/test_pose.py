@@ -116,8 +116,16 @@ def test_compose_and_interpolate():
     qa, qb, qm = (tf.matrix_to_quat(P.rotations) for P in (A, B, M))
     np.testing.assert_allclose(np.abs(np.sum(qm * tf.quat_slerp(qa, qb, 0.25), -1)), 1,
                                atol=1e-12)
-    with pytest.raises(ValueError, match="same Skeleton"):
-        A.interpolate(stbs.Pose.rest(stbs.Skeleton(sk.C, sk.BE)), 0.5)
+    # an equal skeleton (another object, as a rig or a file gives) is accepted ...
+    equal = stbs.Skeleton(sk.C.copy(), sk.BE.copy())
+    np.testing.assert_allclose(A.interpolate(stbs.Pose.rest(equal), 0.0).rotations,
+                               A.rotations, atol=1e-12)
+    # ... a different one is not
+    moved = stbs.Skeleton(sk.C + 1.0, sk.BE)
+    with pytest.raises(ValueError, match="equal skeleton"):
+        A.interpolate(stbs.Pose.rest(moved), 0.5)
+    with pytest.raises(ValueError, match="equal skeleton"):
+        A.compose(stbs.Pose.rest(moved))
 
 
 @pytest.mark.parametrize("kwargs, match", [

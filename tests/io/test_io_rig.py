@@ -5,10 +5,10 @@ import pytest
 import scipy.sparse as sp
 
 import stbs
+from stbs import Rig
 from stbs.io import (
     RIG_VERSION,
     FormatError,
-    Rig,
     load_rig,
     read_dmat,
     read_mesh,
@@ -138,7 +138,7 @@ def test_rig_rejects_inconsistent_input(over, match):
 def test_save_rejects_bad_path_and_meta(tmp_path):
     with pytest.raises(ValueError, match=r"supported extensions are \.npz"):
         save_rig(tmp_path / "r.rig", small_rig())
-    with pytest.raises(ValueError, match="rig must be a stbs.io.Rig"):
+    with pytest.raises(ValueError, match="rig must be a stbs.Rig"):
         save_rig(tmp_path / "r.npz", {"V": 1})
     old = tmp_path / "keep.npz"
     save_rig(old, small_rig())

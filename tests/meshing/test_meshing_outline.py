@@ -10,7 +10,8 @@ from meshing_checks import ENGINES_2D, check_covers_outline, check_trimesh
 
 import stbs
 from stbs.io import FormatError
-from stbs.meshing import boundary_loops, outline_from_image, read_polygons, triangulate_2d
+from stbs.io import read_polygons
+from stbs.meshing import boundary_loops, outline_from_image, triangulate_2d
 from stbs.meshing._geometry import point_segment_distance, signed_area
 
 

@@ -217,7 +217,7 @@ def _write(out: Path, ext: str, U, r: _Rig, method: str) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from ..posefile import read_pose
+    from ..io import read_pose
     from ..skinning import deform
 
     out, ext = _output_path(args.output)

@@ -37,10 +37,10 @@ EPILOG = f"""examples:
   stbs rig arm.obj arm.tgf -o arm.npz --bone heat --endpoint heat
   stbs rig drawing.png drawing.tgf -o drawing.npz --clip-skeleton   # 2D, from a picture"""
 
+#: The rig pipeline's choices and default KKT tolerance (stbs.rig.build), repeated here
+#: so that building the parser imports nothing heavy; a test checks they agree.
 BONE = ("bbw", "heat")
 ENDPOINT = ("bbw", "bbw-joints", "heat", "projection", "idw")
-#: KKT tolerance of the command's BBW solves: weights within about 1e-5 of the exact QP
-#: solution (measured: 2e-7 to 3e-6 on the benchmark meshes), up to 1.5x faster than 1e-10
 DEFAULT_TOL = 1e-6
 
 
@@ -133,78 +133,74 @@ class _Stages:
 
         return progress
 
+    def progress(self, stage: str, done: int, total: int) -> None:
+        """A :func:`stbs.build_rig` progress callback: times each stage it reports."""
+        now = time.perf_counter()
+        if total == 0 and done == 0:
+            self._close(now)
+            self._open = (stage, now)
+            if self.live:
+                print(f"stbs rig: {stage} ...", file=sys.stderr, flush=True)
+                self._bar_fn = self._bar(stage)
+            return
+        if self.live:
+            self._bar_fn(done, total)
+
+    def _close(self, now: float) -> None:
+        if getattr(self, "_open", None) is not None:
+            label, t0 = self._open
+            self.times.append((label, now - t0))
+            if self.live:
+                print(file=sys.stderr, flush=True)
+            self._open = None
+
+    def pipeline(self, fn, *a, **kw):
+        """Run ``fn(*a, progress=self.progress, **kw)``, timing the stages it reports."""
+        try:
+            return fn(*a, progress=self.progress, **kw)
+        finally:
+            self._close(time.perf_counter())
+
     def summary(self) -> str:
         total = sum(t for _, t in self.times)
         rows = [f"  {label:<28} {t:8.2f} s" for label, t in self.times]
         return "\n".join(["stbs rig: time per stage", *rows, f"  {'total':<28} {total:8.2f} s"])
 
 
-def compute_weights(st: _Stages, V, F, T, sk, *, bone: str, endpoint: str, tets: str,
-                    mesh_name: str, tol: float = DEFAULT_TOL, clip_skeleton: bool = False,
-                    meshed: bool = False):
-    """Bone and endpoint weights (n, b) of the rest mesh (V, F, T); see DESCRIPTION.
-
-    ``meshed``: a 2D (V, F) that stbs triangulated with the bones inside already (from
-    an outline), used as it is. Returns W, E and whether the rig keeps the mesh's own
-    tetrahedra.
-    """
+def build(st: _Stages, V, F, T, sk, *, bone: str, endpoint: str, tets: str, mesh_name: str,
+          tol: float = DEFAULT_TOL, clip_skeleton: bool = False, meshed: bool = False, W=None):
+    """:func:`stbs.build_rig` for the command line: ``--tets FILE`` read and checked, the
+    stages timed; returns the rig (weights restricted to ``V``)."""
     from ..io import read_mesh
-    from ..meshing import tetrahedralize, triangulate_2d
-    from ..weights import bone_heat, bone_weights, endpoint_weights
+    from ..rig import Rig, build_rig
     from ._errors import CommandError
 
     n = len(V)
     if clip_skeleton and (bone != "bbw" or tets != "auto" or T is not None):
         raise CommandError("--clip-skeleton applies when stbs meshes the shape itself "
                            "(--bone bbw: a 2D mesh, or a 3D surface with --tets auto)")
-    if bone == "heat":
-        if V.shape[1] != 3 or F is None:
-            raise CommandError(f"--bone heat needs a 3D triangle surface; {mesh_name!r} is "
-                               f"{V.shape[1]}D" + ("" if F is not None else " without triangles"))
-        W = st.run("bone heat", bone_heat, V, F, sk)
-        Vm, Fm, Tm, Wm = V, F, None, W
-    else:
-        if V.shape[1] == 2 and meshed:
-            Vm, Fm, Tm = V, F, None
-        elif V.shape[1] == 2:
-            if F is None:
-                raise CommandError(f"{mesh_name!r}: a 2D rig needs triangles to take the "
-                                   "outline from")
-            tri = st.run("triangulate (bones inside)", triangulate_2d, (V, F), sk,
-                         clip_skeleton=clip_skeleton)
-            Vm, Fm, Tm = tri.V, tri.F, None
-        elif T is not None and tets == "auto":
-            Vm, Fm, Tm = V, F, T
-        elif tets != "auto":
-            tm = st.run("read tets", read_mesh, tets)
-            if tm.T is None or len(tm.V) < n or not (tm.V[:n] == V).all():
-                raise CommandError(f"--tets {tets!r}: expected tetrahedra whose first "
-                                   f"{n} vertices are the surface {mesh_name!r}'s, in order")
-            Vm, Fm, Tm = tm.V, F, tm.T
-        else:
-            if F is None:
-                raise CommandError(f"{mesh_name!r}: a 3D rig needs a closed triangle surface")
-            tet = st.run("tetrahedralize (bones inside)", tetrahedralize, V, F, sk,
-                         clip_skeleton=clip_skeleton)
-            Vm, Fm, Tm = tet.V, F, tet.T
-        Wm = st.run("bone weights (bbw)", bone_weights, Vm, sk, method="bbw",
-                    F=Fm if Tm is None else None, T=Tm, tol=tol, bar=True)
-        W = Wm[:n]
-    elem = dict(T=Tm) if Tm is not None else dict(F=Fm)
-    if endpoint == "heat":
-        if V.shape[1] != 3 or F is None:
-            raise CommandError("--endpoint heat needs a 3D triangle surface")
-        E = st.run("endpoint weights (heat)", endpoint_weights, V, sk, method="heat", W=W, F=F)
-    elif endpoint in ("projection", "idw"):
-        E = st.run(f"endpoint weights ({endpoint})", endpoint_weights, V, sk, method=endpoint)
-    else:
-        E = st.run(f"endpoint weights ({endpoint})", endpoint_weights, Vm, sk,
-                   method=endpoint, W=Wm, bar=True, **elem, **_tol_kw(endpoint, tol))[:n]
-    return W, E, Tm is T and T is not None
-
-
-def _tol_kw(endpoint: str, tol: float) -> dict:
-    return {"tol": tol} if endpoint in ("bbw", "bbw-joints") else {}
+    if bone == "heat" and (V.shape[1] != 3 or F is None):
+        raise CommandError(f"--bone heat needs a 3D triangle surface; {mesh_name!r} is "
+                           f"{V.shape[1]}D" + ("" if F is not None else " without triangles"))
+    if endpoint == "heat" and (V.shape[1] != 3 or F is None):
+        raise CommandError("--endpoint heat needs a 3D triangle surface")
+    if bone == "bbw" and W is None and V.shape[1] == 2 and F is None:
+        raise CommandError(f"{mesh_name!r}: a 2D rig needs triangles to take the outline from")
+    if bone == "bbw" and W is None and V.shape[1] == 3 and T is None and F is None:
+        raise CommandError(f"{mesh_name!r}: a 3D rig needs a closed triangle surface")
+    if tets != "auto" and W is None and bone == "bbw":
+        tm = st.run("read tets", read_mesh, tets)
+        if tm.T is None or len(tm.V) < n or not (tm.V[:n] == V).all():
+            raise CommandError(f"--tets {tets!r}: expected tetrahedra whose first "
+                               f"{n} vertices are the surface {mesh_name!r}'s, in order")
+        first = "projection" if endpoint == "heat" else endpoint    # heat: on the surface
+        full = st.pipeline(build_rig, tm.V, sk, T=tm.T, bone=bone, endpoint=first, tol=tol)
+        W, E = full.W[:n], full.E[:n]
+        if endpoint == "heat":
+            E = st.pipeline(build_rig, V, sk, F=F, W=W, endpoint="heat").E
+        return Rig(V=V, F=F, skeleton=sk, W=W, E=E, meta={"bone": bone, "endpoint": endpoint})
+    return st.pipeline(build_rig, V, sk, F=F, T=T, W=W, bone=bone, endpoint=endpoint, tol=tol,
+                       clip_skeleton=clip_skeleton, remesh=not meshed)
 
 
 def check_output(path: str):
@@ -226,19 +222,6 @@ IMAGE_EXTENSIONS = (".png", ".jpg", ".jpeg", ".bmp", ".gif", ".tif", ".tiff", ".
 OUTLINE_EXTENSIONS = (".poly", *IMAGE_EXTENSIONS)
 #: Triangles an outline is meshed into by default (--max-area = area / this).
 OUTLINE_TRIANGLES = 4000
-
-
-def polygons_area(polygons) -> float:
-    """Area inside closed polygons read with the even-odd rule: a polygon inside an odd
-    number of the others is a hole and subtracts."""
-    from ..meshing._geometry import points_in_loops, signed_area
-
-    total = 0.0
-    for i, P in enumerate(polygons):
-        others = [Q for k, Q in enumerate(polygons) if k != i]
-        hole = bool(others) and bool(points_in_loops(P[:1], others)[0])
-        total += -abs(signed_area(P)) if hole else abs(signed_area(P))
-    return max(total, 1e-300)
 
 
 def read_image(path: str):
@@ -265,7 +248,8 @@ def read_image(path: str):
 
 def read_outline(st: _Stages, path: str, *, threshold: float, invert: bool) -> list:
     """The polygons of a ``.poly`` file, or of the shape traced in an image."""
-    from ..meshing import outline_from_image, read_polygons
+    from ..io import read_polygons
+    from ..meshing import outline_from_image
     from ._errors import CommandError
 
     if path.lower().endswith(".poly"):
@@ -280,7 +264,8 @@ def read_outline(st: _Stages, path: str, *, threshold: float, invert: bool) -> l
 
 
 def run(args: argparse.Namespace) -> int:
-    from ..io import Rig, read_mesh, read_skeleton, save_rig
+    from ..geometry import polygons_area
+    from ..io import read_mesh, read_skeleton, save_rig
     from ..meshing import triangulate_2d
     from ._errors import CommandError
 
@@ -305,7 +290,7 @@ def run(args: argparse.Namespace) -> int:
         sk = st.run("read skeleton", read_skeleton, args.skeleton, dim=2)
         max_area = args.max_area
         if max_area is None:    # about OUTLINE_TRIANGLES triangles: a smooth field for BBW
-            max_area = polygons_area(polygons) / OUTLINE_TRIANGLES
+            max_area = max(polygons_area(polygons), 1e-300) / OUTLINE_TRIANGLES
         tri = st.run("triangulate (bones inside)", triangulate_2d, polygons, sk,
                      max_area=max_area, clip_skeleton=args.clip_skeleton)
         V, F, T = tri.V, tri.F, None
@@ -313,12 +298,9 @@ def run(args: argparse.Namespace) -> int:
         mesh = st.run("read mesh", read_mesh, args.mesh)
         V, F, T = mesh.V, mesh.F, mesh.T
         sk = st.run("read skeleton", read_skeleton, args.skeleton, dim=V.shape[1])
-    W, E, keep_T = compute_weights(st, V, F, T, sk, bone=args.bone, endpoint=args.endpoint,
-                                   tets=args.tets, mesh_name=args.mesh, tol=tol,
-                                   clip_skeleton=args.clip_skeleton and not outline,
-                                   meshed=outline)
-    rig = Rig(V=V, F=F, T=T if keep_T else None, C=sk.C, BE=sk.BE, names=sk.names,
-              W=W, E=E, meta={"bone": args.bone, "endpoint": args.endpoint})
+    rig = build(st, V, F, T, sk, bone=args.bone, endpoint=args.endpoint, tets=args.tets,
+                mesh_name=args.mesh, tol=tol, clip_skeleton=args.clip_skeleton and not outline,
+                meshed=outline)
     st.run("write rig", save_rig, out, rig)
     print(st.summary(), file=sys.stderr)
     print(f"wrote {out}: {len(V)} vertices, {sk.n_bones} bones ({args.bone} bone weights, "

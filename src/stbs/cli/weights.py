@@ -34,10 +34,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from ..io import Rig, load_rig, save_rig
-    from ..weights import endpoint_weights
+    from ..io import load_rig, save_rig
+    from ..rig import build_rig
     from ._errors import CommandError
-    from .rig import _Stages, _tol_kw, check_output, compute_weights, resolve_tol
+    from .rig import _Stages, build, check_output, resolve_tol
 
     out = check_output(args.output)
     tol = resolve_tol(args.tol, args.bone, args.endpoint)
@@ -48,25 +48,16 @@ def run(args: argparse.Namespace) -> int:
         if args.clip_skeleton:
             raise CommandError("--clip-skeleton applies when the bone weights are "
                                "recomputed with --bone bbw (the mesh is meshed again)")
-        W = rig.W
-        if args.endpoint in ("projection", "idw"):
-            E = st.run(f"endpoint weights ({args.endpoint})", endpoint_weights, rig.V, sk,
-                       method=args.endpoint)
-        else:
-            elem = dict(T=rig.T) if rig.T is not None else dict(F=rig.F)
-            E = st.run(f"endpoint weights ({args.endpoint})", endpoint_weights, rig.V, sk,
-                       method=args.endpoint, W=W, **elem, **_tol_kw(args.endpoint, tol))
-        keep_T = rig.T is not None
+        new = st.pipeline(build_rig, rig.V, sk, F=rig.F, T=rig.T, W=rig.W,
+                          endpoint=args.endpoint, tol=tol)
     else:
-        W, E, keep_T = compute_weights(st, rig.V, rig.F, rig.T, sk, bone=args.bone,
-                                       endpoint=args.endpoint, tets=args.tets,
-                                       mesh_name=args.rig, tol=tol,
-                                       clip_skeleton=args.clip_skeleton)
+        new = build(st, rig.V, rig.F, rig.T, sk, bone=args.bone, endpoint=args.endpoint,
+                    tets=args.tets, mesh_name=args.rig, tol=tol,
+                    clip_skeleton=args.clip_skeleton)
     meta = dict(rig.meta or {}, endpoint=args.endpoint)
     if args.bone != "keep":
         meta["bone"] = args.bone
-    new = Rig(V=rig.V, F=rig.F, T=rig.T if keep_T else None, C=rig.C, BE=rig.BE,
-              names=rig.names, W=W, E=E, meta=meta)
+    new = new.replace(meta=meta, F=rig.F)
     st.run("write rig", save_rig, out, new)
     print(st.summary(), file=sys.stderr)
     print(f"wrote {out}: {len(rig.V)} vertices, {sk.n_bones} bones")

@@ -1,4 +1,4 @@
-"""File input and output: meshes, skeletons, weights and rigs (DESIGN §6).
+"""File input and output: meshes, skeletons, weights, rigs and poses (DESIGN §6).
 
 Readers raise :class:`FileNotFoundError` for a missing file, :class:`ValueError`
 for an unknown extension (listing the supported ones) and :class:`FormatError`
@@ -19,7 +19,10 @@ function               formats
 :func:`write_dmat`     .dmat
 :func:`read_weights`   .dmat .npy .npz .csv
 :func:`load_rig`       .npz rig, format version 1 (see :mod:`stbs.io.rig`)
-:func:`save_rig`       .npz rig
+:func:`save_rig`       .npz rig (a :class:`stbs.Rig`)
+:func:`read_pose`      .json pose (either form, see :mod:`stbs.io.pose`)
+:func:`write_pose`     .json pose
+:func:`read_polygons`  .poly (Triangle's planar straight-line graph) -> polygons
 =====================  ==============================================
 """
 
@@ -28,7 +31,9 @@ from .bf import BoneForest, read_bf
 from .dmat import read_dmat, write_dmat
 from .errors import FormatError
 from .mesh import MESH_READ_EXTENSIONS, MESH_WRITE_EXTENSIONS, Mesh, read_mesh, write_mesh
-from .rig import RIG_VERSION, Rig, load_rig, save_rig
+from .poly import read_polygons
+from .pose import pose_to_dict, read_pose, write_pose
+from .rig import RIG_VERSION, load_rig, save_rig
 from .skeleton_file import SKELETON_READ_EXTENSIONS, read_skeleton
 from .tgf import read_tgf, write_tgf
 from .weights import WEIGHT_READ_EXTENSIONS, read_weights
@@ -39,6 +44,7 @@ __all__ = [
     "read_tgf", "write_tgf", "BoneForest", "read_bf", "read_skeleton",
     "SKELETON_READ_EXTENSIONS",
     "read_dmat", "write_dmat", "read_weights", "WEIGHT_READ_EXTENSIONS",
-    "Rig", "save_rig", "load_rig", "RIG_VERSION",
+    "save_rig", "load_rig", "RIG_VERSION", "read_pose", "write_pose", "pose_to_dict",
+    "read_polygons",
     "atomic_open", "atomic_save", "atomic_write",
 ]

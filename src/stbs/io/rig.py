@@ -1,6 +1,6 @@
 """The native rig file: one ``.npz`` archive with documented, versioned keys.
 
-A *rig* bundles the rest mesh, the skeleton and the weights (DESIGN §6). The
+A *rig* (:class:`stbs.Rig`) bundles the rest mesh, the skeleton and the weights. The
 file is a plain NumPy ``.npz`` (zip of ``.npy`` arrays, written compressed),
 readable without stbs and never containing pickled objects.
 
@@ -40,147 +40,22 @@ import json
 import os
 import zipfile
 import zlib
-from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 import scipy.sparse as sp
 
-from .. import _checks
-from ..skeleton import Skeleton
+from ..rig.model import Rig
 from ._atomic import atomic_open
 from ._parse import input_path, suffix
 from .errors import FormatError
 
-__all__ = ["Rig", "save_rig", "load_rig", "RIG_VERSION"]
+__all__ = ["save_rig", "load_rig", "RIG_VERSION"]
 
 #: The format version :func:`save_rig` writes and :func:`load_rig` reads.
 RIG_VERSION = 1
 
 _SPARSE_PARTS = ("data", "indices", "indptr", "shape")
-
-
-def _weights(name: str, X: Any, n: int, b: int):
-    """Dense (n, b) float64 or CSR float64 of that shape, finite; values not constrained."""
-    if X is None:
-        return None
-    if sp.issparse(X):
-        X = sp.csr_array(X, dtype=np.float64)
-        if X.shape != (n, b):
-            raise ValueError(f"{name} must have shape ({n}, {b}) (vertices, bones), "
-                             f"got {X.shape}")
-        if not np.all(np.isfinite(X.data)):
-            raise ValueError(f"{name} must be finite, got non-finite stored values")
-        X.sort_indices()
-        return X
-    if np.ndim(X) == 1 and b == 1:
-        X = np.asarray(X).reshape(-1, 1)
-    X = _checks.real_array(name, X, ndim=2)
-    if X.shape != (n, b):
-        raise ValueError(f"{name} must have shape ({n}, {b}) (vertices, bones), got {X.shape}")
-    return X
-
-
-def _elements(name: str, X: Any, k: int, n: int):
-    if X is None:
-        return None
-    X = _checks.index_array(name, X, ndim=2, shape=(None, k))
-    if X.size and (X.min() < 0 or X.max() >= n):
-        bad = int(X.min()) if X.min() < 0 else int(X.max())
-        raise ValueError(f"{name} must hold vertex indices in 0..{n - 1}, got {bad}")
-    return X
-
-
-@dataclass(kw_only=True, eq=False)
-class Rig:
-    """A rest mesh with its skeleton and weights.
-
-    Parameters
-    ----------
-    V : (n, d) float
-        Rest vertex positions, d = 2 or 3.
-    F : (f, 3) int, optional
-        Triangles.
-    T : (t, 4) int, optional
-        Tetrahedra.
-    C : (j, d) float
-        Rest joint positions (same d as ``V``).
-    BE : (b, 2) int
-        Bones as joint pairs; must form a valid :class:`stbs.Skeleton`.
-    names : sequence of b str, optional
-        Bone names.
-    W : (n, b) float, dense or scipy.sparse
-        Bone weights.
-    E : (n, b) float, dense or scipy.sparse, optional
-        Endpoint weights.
-    meta : dict, optional
-        Free metadata (must be JSON-serialisable to be saved), e.g. how the
-        weights were computed.
-
-    Raises
-    ------
-    ValueError
-        Shapes that do not fit together (``W`` not (n, b), ``C`` of another
-        dimension than ``V``, indices out of range), non-finite values, or an
-        invalid skeleton; the message names the argument.
-
-    Notes
-    -----
-    Only shapes and finiteness are checked here: the partition of unity of
-    ``W`` and the range of ``E`` are checked where the weights are used, so a
-    rig can hold painted, unnormalised weights as found in real files.
-    """
-
-    V: Any
-    F: Any = None
-    T: Any = None
-    C: Any
-    BE: Any
-    names: list[str] | None = None
-    W: Any
-    E: Any = None
-    meta: dict = field(default_factory=dict)
-
-    def __post_init__(self):
-        self.V = _checks.vertices(self.V)
-        n, d = self.V.shape
-        self.F = _elements("F", self.F, 3, n)
-        self.T = _elements("T", self.T, 4, n)
-        sk = Skeleton(self.C, self.BE, self.names)
-        if sk.dim != d:
-            raise ValueError(f"C must have {d} columns like V (n, {d}), got {sk.C.shape}")
-        self.C = np.array(sk.C)
-        self.BE = np.array(sk.BE)
-        if self.names is not None:
-            self.names = list(sk.names)
-        b = sk.n_bones
-        self.W = _weights("W", self.W, n, b)
-        if self.W is None:
-            raise ValueError("W must be given: (n, b) bone weights")
-        self.E = _weights("E", self.E, n, b)
-        if self.meta is None:
-            self.meta = {}
-        if not isinstance(self.meta, dict):
-            raise ValueError(f"meta must be a dict, got {type(self.meta).__name__}")
-
-    @property
-    def skeleton(self) -> Skeleton:
-        """The rig's :class:`stbs.Skeleton` (built from ``C``, ``BE``, ``names``)."""
-        return Skeleton(self.C, self.BE, self.names)
-
-    @property
-    def dim(self) -> int:
-        """2 or 3."""
-        return int(self.V.shape[1])
-
-    def __repr__(self) -> str:
-        parts = [f"V={self.V.shape}"]
-        parts += [f"{k}={getattr(self, k).shape}" for k in ("F", "T")
-                  if getattr(self, k) is not None]
-        parts += [f"C={self.C.shape}", f"BE={self.BE.shape}"]
-        parts += [f"{k}={'sparse ' if sp.issparse(getattr(self, k)) else ''}"
-                  f"{getattr(self, k).shape}" for k in ("W", "E") if getattr(self, k) is not None]
-        return f"Rig({', '.join(parts)})"
 
 
 def _put_weights(out: dict, name: str, X) -> None:
@@ -214,10 +89,9 @@ def save_rig(path: str | os.PathLike, rig: Rig) -> None:
     """
     suffix(path, (".npz",), "save_rig")
     if not isinstance(rig, Rig):
-        raise ValueError(f"rig must be a stbs.io.Rig, got {type(rig).__name__}")
-    # Re-validate: the dataclass fields may have been reassigned since construction.
-    rig = Rig(V=rig.V, F=rig.F, T=rig.T, C=rig.C, BE=rig.BE, names=rig.names, W=rig.W,
-              E=rig.E, meta=rig.meta)
+        raise ValueError(f"rig must be a stbs.Rig, got {type(rig).__name__}")
+    # Re-validate: the fields may have been reassigned since construction.
+    rig = rig.replace()
     out: dict[str, np.ndarray] = {
         "stbs_rig_version": np.asarray(RIG_VERSION, dtype=np.int64),
         "V": rig.V,

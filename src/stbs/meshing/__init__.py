@@ -9,20 +9,20 @@ function                   what it does
                            bone samples as vertices (TetGen, or builtin lattice)
 :func:`check_surface`      closed, manifold, oriented, not self-intersecting?
 :func:`outline_from_image` image mask -> polygons (marching squares)
-:func:`boundary_loops`     a 2D mesh's boundary loops
-:func:`read_polygons`      Triangle ``.poly`` file -> polygons
+:func:`boundary_loops`     a 2D mesh's boundary loops (from :mod:`stbs.geometry`)
 =========================  ====================================================
 
-The optional engines are imported on first use only; see ``docs/meshing.md`` for
-their licences and the extras that install them.
+Triangle ``.poly`` files are read by :func:`stbs.io.read_polygons`. The optional
+engines are imported on first use only; see ``docs/meshing.md`` for their licences
+and the extras that install them.
 """
 
 from ..geometry import boundary_loops
-from .outline import outline_from_image, read_polygons
+from .outline import outline_from_image
 from .result import TetMesh, TriMesh
 from .surface import check_surface
 from .tetrahedra import ENGINES_3D, tetrahedralize
 from .triangulate import ENGINES_2D, triangulate_2d
 
 __all__ = ["TriMesh", "TetMesh", "triangulate_2d", "tetrahedralize", "check_surface",
-           "outline_from_image", "boundary_loops", "read_polygons", "ENGINES_2D", "ENGINES_3D"]
+           "outline_from_image", "boundary_loops", "ENGINES_2D", "ENGINES_3D"]

@@ -8,7 +8,7 @@ import pytest
 
 import stbs
 from stbs import transforms as tf
-from stbs.posefile import read_pose
+from stbs.io import read_pose
 
 D = math.pi / 180
 

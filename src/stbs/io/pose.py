@@ -72,11 +72,11 @@ from typing import Any
 
 import numpy as np
 
-from . import transforms as tf
-from .pose import Pose, forward_kinematics
-from .skeleton import Skeleton
+from .. import transforms as tf
+from ..pose import Pose, forward_kinematics
+from ..skeleton import Skeleton
 
-__all__ = ["read_pose", "JOINTS_KEYS", "FK_KEYS"]
+__all__ = ["read_pose", "write_pose", "pose_to_dict", "POSE_FORMS", "JOINTS_KEYS", "FK_KEYS"]
 
 #: Keys of the joints form.
 JOINTS_KEYS = ("joints", "twist", "degrees")
@@ -308,3 +308,185 @@ class _Reader:
                 tau[a] = s
             tau[b] = e - s
         return tau
+
+
+# ----------------------------------------------------------------------------- writing
+
+#: Forms :func:`write_pose` can write.
+POSE_FORMS = ("auto", "fk", "joints")
+
+
+def pose_to_dict(pose: Pose, *, form: str = "auto", degrees: bool = True) -> dict:
+    """The JSON object of a pose file describing ``pose`` (the inverse of :func:`read_pose`).
+
+    Parameters
+    ----------
+    pose : Pose
+    form : {"auto", "fk", "joints"}
+        ``"fk"``: the forward-kinematics form (local rotations, stretch, local twists,
+        translation), which exists when every child bone starts at its parent's
+        posed end, every root moves by the same translation, and only root bones
+        twist at their start. ``"joints"``: the posed joints and absolute twists,
+        which exists when shared joints agree and every rotation is the smallest one
+        from the rest to the posed direction (no roll about the bone). ``"auto"``:
+        the first of the two that describes the pose exactly.
+    degrees : bool
+        Angles in degrees (``"degrees": true``) or radians.
+
+    Returns
+    -------
+    dict
+        Bones are named by name; entries equal to their default are left out.
+
+    Raises
+    ------
+    ValueError
+        ``form`` is unknown, or the pose cannot be written in it (the message says
+        which bone breaks which condition).
+    """
+    if not isinstance(pose, Pose):
+        raise TypeError(f"pose must be a stbs.Pose, got {type(pose).__name__}")
+    if form not in POSE_FORMS:
+        raise ValueError(f"form must be one of {', '.join(POSE_FORMS)}, got {form!r}")
+    scale = 180.0 / math.pi if degrees else 1.0
+    if form in ("auto", "fk"):
+        fk, why = _fk_dict(pose, scale)
+        if fk is not None:
+            return {**fk, "degrees": degrees}
+        if form == "fk":
+            raise ValueError(f"pose: not expressible in the forward-kinematics form: {why}")
+    joints, why_j = _joints_dict(pose, scale)
+    if joints is not None:
+        return {**joints, "degrees": degrees}
+    if form == "joints":
+        raise ValueError(f"pose: not expressible in the joints form: {why_j}")
+    raise ValueError(f"pose: expressible in neither pose-file form (forward kinematics: {why}; "
+                     f"joints: {why_j})")
+
+
+def write_pose(path: str | os.PathLike, pose: Pose, *, form: str = "auto",
+               degrees: bool = True) -> None:
+    """Write ``pose`` as a JSON pose file that :func:`read_pose` reads back (atomically).
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        Destination file (its folder must exist); written to a temporary file and
+        renamed, so a failure leaves an existing file untouched.
+    pose : Pose
+    form, degrees
+        As in :func:`pose_to_dict`.
+
+    Examples
+    --------
+    >>> import os, tempfile
+    >>> import numpy as np
+    >>> import stbs
+    >>> sk = stbs.Skeleton([[0, 0, 0], [1, 0, 0], [2, 0, 0]], [[0, 1], [1, 2]],
+    ...                    names=["upper", "fore"])
+    >>> pose = stbs.forward_kinematics(sk, stretch=[1.0, 1.5], twist=np.radians([0, 0, 90]))
+    >>> path = os.path.join(tempfile.mkdtemp(), "pose.json")
+    >>> stbs.io.write_pose(path, pose)
+    >>> back = stbs.io.read_pose(path, sk)
+    >>> bool(np.allclose(back.twist, pose.twist) and np.allclose(back.stretch, pose.stretch))
+    True
+    """
+    from ._atomic import atomic_open
+
+    obj = pose_to_dict(pose, form=form, degrees=degrees)
+    text = json.dumps(obj, indent=1)
+    with atomic_open(path, "w") as f:
+        f.write(text + "\n")
+
+
+def _tol(pose: Pose) -> float:
+    sk = pose.skeleton
+    return 1e-9 * max(float(np.abs(sk.C).max()), float(np.abs(pose.origins).max()), 1.0)
+
+
+def _num(x: float) -> float:
+    x = float(x)
+    return 0.0 if x == 0 else x
+
+
+def _fk_dict(pose: Pose, scale: float) -> tuple[dict | None, str]:
+    sk = pose.skeleton
+    b, d = sk.n_bones, sk.dim
+    tol = _tol(pose)
+    R, O, sig, th = pose.rotations, pose.origins, pose.stretch, pose.twist
+    vec = sk.B - sk.A
+    ends = O + sig[:, None] * np.einsum("bij,bj->bi", R, vec)
+    roots = sk.roots
+    shift = O[roots[0]] - sk.A[roots[0]]
+    G = np.empty((b, d, d))
+    L = np.empty((b, d, d))
+    for i in sk.order:
+        p = sk.parents[i]
+        if p < 0:
+            if np.abs(O[i] - sk.A[i] - shift).max() > tol:
+                return None, (f"root bones {roots[0]} and {i} ({sk.names[i]!r}) move by "
+                              "different translations")
+            same = np.flatnonzero((sk.BE[:, 0] == sk.BE[i, 0]) & (sk.parents < 0))
+            if np.abs(th[same, 0] - th[i, 0]).max() > 1e-12:
+                return None, (f"root bones starting at joint {sk.BE[i, 0]} have different "
+                              "start twists")
+            L[i] = R[i]
+        else:
+            if np.abs(O[i] - ends[p]).max() > tol:
+                return None, (f"bone {i} ({sk.names[i]!r}) does not start at the posed end "
+                              f"of its parent bone {p}")
+            if abs(th[i, 0]) > 1e-12:
+                return None, (f"bone {i} ({sk.names[i]!r}) twists at its start but is not "
+                              "a root")
+            L[i] = G[p].T @ R[i]
+        G[i] = R[i] @ tf.axis_angle_to_matrix(sk.axes[i], th[i, 1]) if d == 3 else R[i]
+    obj: dict[str, Any] = {}
+    rotate = {}
+    for i in range(b):
+        if np.abs(L[i] - np.eye(d)).max() <= 1e-15:
+            continue
+        if d == 2:
+            rotate[sk.names[i]] = {"angle": _num(tf.angle_2d(L[i]) * scale)}
+        else:
+            axis, angle = tf.quat_to_axis_angle(tf.matrix_to_quat(L[i]))
+            rotate[sk.names[i]] = {"axis": [_num(a) for a in axis],
+                                   "angle": _num(angle * scale)}
+    if rotate:
+        obj["rotate"] = rotate
+    stretch = {sk.names[i]: _num(sig[i]) for i in range(b) if sig[i] != 1.0}
+    if stretch:
+        obj["stretch"] = stretch
+    twist = {sk.names[i]: [_num(th[i, 0] * scale), _num(th[i, 1] * scale)]
+             for i in range(b) if np.any(th[i] != 0)}
+    if twist:
+        obj["twist"] = twist
+    if np.any(shift != 0):
+        obj["translate"] = [_num(x) for x in shift]
+    return obj, ""
+
+
+def _joints_dict(pose: Pose, scale: float) -> tuple[dict | None, str]:
+    sk = pose.skeleton
+    tol = _tol(pose)
+    R, O, sig, th = pose.rotations, pose.origins, pose.stretch, pose.twist
+    vec = sk.B - sk.A
+    posed = sig[:, None] * np.einsum("bij,bj->bi", R, vec)
+    C = np.array(sk.C, dtype=np.float64)
+    seen = np.zeros(sk.n_joints, dtype=bool)
+    for i in range(sk.n_bones):
+        for k, x in ((sk.BE[i, 0], O[i]), (sk.BE[i, 1], O[i] + posed[i])):
+            if seen[k] and np.abs(C[k] - x).max() > tol:
+                return None, f"bones meeting at joint {k} put it at different places"
+            C[k], seen[k] = x, True
+    smallest = tf.rotation_between(vec, posed)
+    roll = np.abs(smallest - R).max(axis=(1, 2))
+    if roll.max() > 1e-9:
+        i = int(np.argmax(roll))
+        return None, (f"bone {i} ({sk.names[i]!r}) is rolled about its own axis (use the "
+                      "twist or the forward-kinematics form)")
+    obj: dict[str, Any] = {"joints": [[_num(x) for x in row] for row in C]}
+    twist = {sk.names[i]: [_num(th[i, 0] * scale), _num(th[i, 1] * scale)]
+             for i in range(sk.n_bones) if np.any(th[i] != 0)}
+    if twist:
+        obj["twist"] = twist
+    return obj, ""

@@ -1,0 +1,194 @@
+"""The rig model: a rest mesh, one skeleton and the weights (DESIGN §5, §6).
+
+A :class:`Rig` is data, not a file: :func:`stbs.io.save_rig` and
+:func:`stbs.io.load_rig` write and read it as a versioned ``.npz``, and
+:func:`stbs.build_rig` computes one from a bare mesh and skeleton.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+import scipy.sparse as sp
+
+from .. import _checks
+from ..skeleton import Skeleton
+
+__all__ = ["Rig"]
+
+
+def _weights(name: str, X: Any, n: int, b: int):
+    """Dense (n, b) float64 or CSR float64 of that shape, finite; values not constrained."""
+    if X is None:
+        return None
+    if sp.issparse(X):
+        X = sp.csr_array(X, dtype=np.float64)
+        if X.shape != (n, b):
+            raise ValueError(f"{name} must have shape ({n}, {b}) (vertices, bones), "
+                             f"got {X.shape}")
+        if not np.all(np.isfinite(X.data)):
+            raise ValueError(f"{name} must be finite, got non-finite stored values")
+        X.sort_indices()
+        return X
+    if np.ndim(X) == 1 and b == 1:
+        X = np.asarray(X).reshape(-1, 1)
+    X = _checks.real_array(name, X, ndim=2)
+    if X.shape != (n, b):
+        raise ValueError(f"{name} must have shape ({n}, {b}) (vertices, bones), got {X.shape}")
+    return X
+
+
+def _elements(name: str, X: Any, k: int, n: int):
+    if X is None:
+        return None
+    X = _checks.index_array(name, X, ndim=2, shape=(None, k))
+    if X.size and (X.min() < 0 or X.max() >= n):
+        bad = int(X.min()) if X.min() < 0 else int(X.max())
+        raise ValueError(f"{name} must hold vertex indices in 0..{n - 1}, got {bad}")
+    return X
+
+
+class Rig:
+    """A rest mesh with its skeleton and weights.
+
+    The skeleton is given either as a :class:`stbs.Skeleton` (``skeleton=``) or as its
+    arrays (``C``, ``BE``, ``names``); the rig builds it once and always returns that
+    same object, so poses made from ``rig.skeleton`` compose with each other.
+
+    Parameters
+    ----------
+    V : (n, d) float
+        Rest vertex positions, d = 2 or 3.
+    W : (n, b) float, dense or scipy.sparse
+        Bone weights.
+    skeleton : Skeleton, optional
+        The skeleton (d-dimensional). Give it, or ``C`` and ``BE``, not both.
+    C : (j, d) float, optional
+        Rest joint positions.
+    BE : (b, 2) int, optional
+        Bones as joint pairs; with ``C`` they must form a valid :class:`stbs.Skeleton`.
+    names : sequence of b str, optional
+        Bone names (with ``C`` and ``BE``; a ``skeleton`` brings its own).
+    F : (f, 3) int, optional
+        Triangles.
+    T : (t, 4) int, optional
+        Tetrahedra.
+    E : (n, b) float, dense or scipy.sparse, optional
+        Endpoint weights.
+    meta : dict, optional
+        Free metadata (JSON-serialisable to be saved), e.g. how the weights were made.
+
+    Raises
+    ------
+    ValueError
+        Shapes that do not fit together (``W`` not (n, b), a skeleton of another
+        dimension than ``V``, indices out of range), non-finite values, or an invalid
+        skeleton; the message names the argument.
+    TypeError
+        ``skeleton`` is not a :class:`stbs.Skeleton`, or both forms are given.
+
+    Notes
+    -----
+    Only shapes and finiteness are checked here: the partition of unity of ``W`` and
+    the range of ``E`` are checked where the weights are used, so a rig can hold
+    painted, unnormalised weights as found in real files.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import stbs
+    >>> sk = stbs.Skeleton([[0, 0], [1, 0]], [[0, 1]])
+    >>> rig = stbs.Rig(V=[[0, 0.1], [1, 0.1], [1, -0.1]], F=[[0, 2, 1]], skeleton=sk,
+    ...                W=np.ones((3, 1)))
+    >>> rig
+    Rig(V=(3, 2), F=(1, 3), C=(2, 2), BE=(1, 2), W=(3, 1))
+    >>> rig.skeleton is sk, rig.dim
+    (True, 2)
+    """
+
+    def __init__(self, *, V, W, skeleton: Skeleton | None = None, C=None, BE=None,
+                 names=None, F=None, T=None, E=None, meta: dict | None = None):
+        V = _checks.vertices(V)
+        n, d = V.shape
+        if skeleton is not None:
+            if C is not None or BE is not None or names is not None:
+                raise TypeError("give the skeleton as skeleton= or as C, BE (and names), "
+                                "not both")
+            if not isinstance(skeleton, Skeleton):
+                raise TypeError(f"skeleton must be a stbs.Skeleton, got "
+                                f"{type(skeleton).__name__}")
+            sk = skeleton
+            named = True
+        else:
+            if C is None or BE is None:
+                raise TypeError("a Rig needs its skeleton: skeleton=, or C and BE")
+            sk = Skeleton(C, BE, names)
+            named = names is not None
+        if sk.dim != d:
+            raise ValueError(f"C must have {d} columns like V (n, {d}), got {sk.C.shape}")
+        self.V = V
+        self.F = _elements("F", F, 3, n)
+        self.T = _elements("T", T, 4, n)
+        self._skeleton = sk
+        self._named = named
+        b = sk.n_bones
+        self.W = _weights("W", W, n, b)
+        if self.W is None:
+            raise ValueError("W must be given: (n, b) bone weights")
+        self.E = _weights("E", E, n, b)
+        meta = {} if meta is None else meta
+        if not isinstance(meta, dict):
+            raise ValueError(f"meta must be a dict, got {type(meta).__name__}")
+        self.meta = meta
+
+    @property
+    def skeleton(self) -> Skeleton:
+        """The rig's one :class:`stbs.Skeleton` (the same object on every access)."""
+        return self._skeleton
+
+    @property
+    def C(self) -> np.ndarray:
+        """(j, d) rest joint positions (read-only, the skeleton's)."""
+        return self._skeleton.C
+
+    @property
+    def BE(self) -> np.ndarray:
+        """(b, 2) bones as joint pairs (read-only, the skeleton's)."""
+        return self._skeleton.BE
+
+    @property
+    def names(self) -> list[str] | None:
+        """The bone names given to the rig, or None when the defaults are used."""
+        return list(self._skeleton.names) if self._named else None
+
+    @property
+    def dim(self) -> int:
+        """2 or 3."""
+        return int(self.V.shape[1])
+
+    def replace(self, **changes) -> Rig:
+        """A new rig with some fields replaced (checked again), e.g. ``rig.replace(E=E2)``.
+
+        The skeleton object is kept unless ``skeleton`` (or ``C``/``BE``/``names``) is
+        among the changes.
+        """
+        fields = dict(V=self.V, F=self.F, T=self.T, W=self.W, E=self.E, meta=self.meta)
+        if not ({"skeleton", "C", "BE", "names"} & changes.keys()):
+            fields["skeleton"] = self._skeleton
+        elif "skeleton" not in changes:
+            fields.update(C=self.C, BE=self.BE, names=self.names)
+        fields.update(changes)
+        rig = Rig(**fields)
+        if "skeleton" in fields and "names" not in changes:
+            rig._named = self._named if fields["skeleton"] is self._skeleton else True
+        return rig
+
+    def __repr__(self) -> str:
+        parts = [f"V={self.V.shape}"]
+        parts += [f"{k}={getattr(self, k).shape}" for k in ("F", "T")
+                  if getattr(self, k) is not None]
+        parts += [f"C={self.C.shape}", f"BE={self.BE.shape}"]
+        parts += [f"{k}={'sparse ' if sp.issparse(getattr(self, k)) else ''}"
+                  f"{getattr(self, k).shape}" for k in ("W", "E") if getattr(self, k) is not None]
+        return f"Rig({', '.join(parts)})"
