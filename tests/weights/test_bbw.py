@@ -390,13 +390,13 @@ def test_progress_must_be_callable(u_case):
 
 
 def test_solve_chunk_rule_and_small_chunks_give_the_same_answer(u_case, monkeypatch):
-    mod = sys.modules["stbs.weights.bbw"]          # the package's ``bbw`` is the function
+    mod = sys.modules["stbs.weights.qp"]           # the QP engine chunks the unit solves
     assert mod.solve_chunk(1) == 512 and mod.solve_chunk(10**8) == 64
     sizes = [mod.solve_chunk(n) for n in (5_000, 20_000, 50_000, 200_000)]
     assert sizes == sorted(sizes, reverse=True) and sizes[0] == 512 and 64 < sizes[2] < 512
     V, F, sk, b, bc, solver, W, rep = u_case
     calls = []
-    real = mod._Run._solve_unit
+    real = mod.DualActiveSet.solve_unit
 
     def spy(self, verts):
         for cv, Y in real(self, verts):
@@ -404,7 +404,7 @@ def test_solve_chunk_rule_and_small_chunks_give_the_same_answer(u_case, monkeypa
             yield cv, Y
 
     monkeypatch.setattr(mod, "solve_chunk", lambda nu: 8)   # cut every batch into 8s
-    monkeypatch.setattr(mod._Run, "_solve_unit", spy)
+    monkeypatch.setattr(mod.DualActiveSet, "solve_unit", spy)
     W2 = BBWSolver(V, F).solve(b, bc, restrict=False)
     assert max(calls) == 8 and len(calls) > 20
     np.testing.assert_allclose(W2, W, atol=1e-9)

@@ -47,7 +47,6 @@ from dataclasses import dataclass, field
 from typing import Literal
 
 import numpy as np
-import scipy.linalg as sla
 import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
@@ -55,8 +54,8 @@ from .. import _checks
 from ..skeleton import Skeleton
 from . import _cholmod
 from ._cholesky import Factor
-from ._dense import chol_solve, delete_rows, refactor_without
 from .laplacian import cotmatrix, massmatrix
+from .qp import DualActiveSet, _Green, _Schur
 
 __all__ = ["BBWSolver", "BBWReport", "BBWConvergenceWarning", "bbw", "bone_weights",
            "BONE_METHODS"]
@@ -64,10 +63,6 @@ __all__ = ["BBWSolver", "BBWReport", "BBWConvergenceWarning", "bbw", "bone_weigh
 #: Methods of :func:`bone_weights`.
 BONE_METHODS: tuple[str, ...] = ("bbw",)
 
-_BATCH = 256          # constraints added per function and round, at most
-_SOLVE_BYTES = 48 * 2**20   # right-hand-side block per sparse solve call (solve_chunk)
-_CACHE_BYTES = 256 * 2**20   # dense K^-1 block kept on constrained vertices (all functions)
-_POLISH_ITER = 50     # primal active-set iterations of the fallback polish
 _REGION_MAX = 0.2     # a function whose part exceeds this share of the mesh uses the whole
 _MARGIN_RINGS = 3     # rings added around a function's cells
 _GROW_RINGS = 4       # rings added around vertices where the KKT check failed
@@ -138,107 +133,8 @@ class BBWReport:
 
 
 # --------------------------------------------------------------------------------------
-# dense SPD matrix with a growing Cholesky factor (the Schur complement on S)
-# --------------------------------------------------------------------------------------
-class _Schur:
-    """The dense SPD system on the working set, ``H = (K^-1)[S, S]``, by its Cholesky factor.
-
-    Slots are appended by block Cholesky updates and removed by rank-one updates of
-    the factor (:mod:`._dense`), so neither costs a refactorization; slots stay
-    compact (every slot is a live constraint). ``meta`` holds per-slot arrays
-    (vertex, bound, function) for the caller.
-    """
-
-    def __init__(self, **meta: np.dtype):
-        self._R = np.zeros((0, 0))           # a buffer; the factor is its leading block
-        self.s = 0
-        self.meta = {k: np.zeros(0, dtype=dt) for k, dt in meta.items()}
-
-    @property
-    def size(self) -> int:
-        return self.s
-
-    @property
-    def R(self) -> np.ndarray:
-        return self._R[:self.s, :self.s]
-
-    def get(self, key: str) -> np.ndarray:
-        """Per-slot values of the constraints."""
-        return self.meta[key]
-
-    def append(self, H12: np.ndarray, H22: np.ndarray, **meta: np.ndarray) -> np.ndarray:
-        """Append k slots (``H12``: rows over all current slots); return which were kept.
-
-        A constraint that is (numerically) a combination of others is not added.
-        """
-        k = H22.shape[0]
-        H22 = 0.5 * (H22 + H22.T)
-        R21 = (sla.solve_triangular(self.R, H12, lower=True, check_finite=False).T if self.s
-               else np.zeros((k, 0)))
-        try:
-            R22 = np.linalg.cholesky(H22 - R21 @ R21.T)
-            ok = bool(np.all(np.diag(R22) > 1e-10 * np.sqrt(np.maximum(np.diag(H22), 1e-300))))
-        except np.linalg.LinAlgError:
-            ok = False
-        if ok:
-            self._grow(H12, H22, R21, R22)
-            keep = np.ones(k, dtype=bool)
-        else:  # rare: add one at a time, skipping dependent ones
-            keep = np.zeros(k, dtype=bool)
-            for q in range(k):
-                kept = np.flatnonzero(keep)
-                h12 = np.concatenate([H12[:, q], H22[kept, q]])
-                r = (sla.solve_triangular(self.R, h12, lower=True, check_finite=False) if self.s
-                     else np.zeros(0))
-                d = H22[q, q] - r @ r
-                if d > 1e-20 * max(H22[q, q], 1e-300):
-                    self._grow(h12[:, None], H22[q:q + 1, q:q + 1], r[None, :],
-                               np.array([[np.sqrt(d)]]))
-                    keep[q] = True
-        for key in self.meta:
-            self.meta[key] = np.concatenate([self.meta[key], meta[key][keep]])
-        return keep
-
-    def _grow(self, H12, H22, R21, R22):
-        s, k = self.s, H22.shape[0]
-        if s + k > self._R.shape[0]:        # a geometrically grown buffer
-            cap = max(s + k, 2 * self._R.shape[0], 64)
-            Rb = np.zeros((cap, cap))
-            Rb[:s, :s] = self.R
-            self._R = Rb
-        self._R[s:s + k, :s], self._R[s:s + k, s:s + k] = R21, R22
-        self.s = s + k
-
-    def drop(self, bad: np.ndarray) -> None:
-        """Remove the constraints flagged in ``bad`` (a mask over the slots)."""
-        ks = np.flatnonzero(bad)
-        if ks.size == 0:
-            return
-        keep = ~bad
-        s, q = self.s, int(keep.sum())
-        if ks.size > max(8, s // 8):       # many at once: a new factorization is cheaper
-            refactor_without(self._R, s, ks)
-        else:
-            delete_rows(self._R, s, ks.astype(np.int64))
-        self.s = q
-        self.meta = {k: v[keep] for k, v in self.meta.items()}
-
-    def solve(self, rhs: np.ndarray) -> np.ndarray:
-        """Solve ``H sigma = rhs``."""
-        if self.s == 0:
-            return np.zeros(0)
-        return chol_solve(self._R, self.s, np.ascontiguousarray(rhs, dtype=float))
-
-
-# --------------------------------------------------------------------------------------
 # helpers
 # --------------------------------------------------------------------------------------
-def _local_maxima(v_full: np.ndarray, adj: sp.csr_array) -> np.ndarray:
-    """Mask of vertices whose value is >= every 1-ring neighbour's (rows of adj non-empty)."""
-    nb = np.maximum.reduceat(v_full[adj.indices], adj.indptr[:-1])
-    return v_full >= nb
-
-
 def _blas_threads(threads: int | None):
     """Limit BLAS threads while solving (threadpoolctl, when installed).
 
@@ -703,18 +599,6 @@ class BBWSolver:
         return mask | self._dilate(P, viol, _GROW_RINGS)
 
 
-def solve_chunk(nu: int) -> int:
-    """Right-hand sides per sparse solve call for ``nu`` unknowns: a block of about
-    ``_SOLVE_BYTES``, 64 to 512 columns.
-
-    Per column, CHOLMOD's multi-column solve is cheapest with the block of right-hand
-    sides near the cache sizes: at 50k unknowns (two threads) 3.5 ms with 128 columns
-    against 4.1-4.4 ms with 512, while at 10k and 20k 256-512 are best (measured,
-    ``docs/bbw.md``).
-    """
-    return int(np.clip(_SOLVE_BYTES // (8 * max(int(nu), 1)), 64, 512))
-
-
 def parallel_workers(threads: int, m: int, backend: str = "auto") -> int:
     """Threads for m independent solves: several only on CHOLMOD through ctypes, which
     releases Python's lock while factoring and solving; 1 otherwise."""
@@ -732,54 +616,14 @@ def _concrete_backend() -> str:
     return available_backends()[0]
 
 
-class _Green:
-    """Entries of ``K^-1`` between constrained vertices, shared by all weight functions.
-
-    A vertex joins when its column ``K^-1 e_i`` is solved; the rows of that column at
-    the vertices already here complete the dense symmetric block. Functions whose
-    working sets overlap (neighbouring bones), and constraints dropped and added
-    again, then cost no further solve. ``cap`` bounds the memory (vertices).
-    """
-
-    def __init__(self, nu: int, cap: int | None):
-        self.pos = np.full(nu, -1, dtype=np.int64)
-        self.verts = np.zeros(0, dtype=np.int64)
-        self.G = np.zeros((0, 0))
-        self.cap = cap
-
-    @property
-    def size(self) -> int:
-        return self.verts.size
-
-    def room(self) -> float:
-        return np.inf if self.cap is None else self.cap - self.size
-
-    def has(self, v: np.ndarray) -> bool:
-        return bool(np.all(self.pos[v] >= 0))
-
-    def add(self, cv: np.ndarray, Y: np.ndarray) -> None:
-        """Add vertices ``cv`` (not yet here) given their full columns ``Y`` (nu, k)."""
-        s, k = self.size, cv.size
-        if s + k > self.G.shape[0]:
-            cap = max(s + k, int(1.5 * self.G.shape[0]), 64)
-            if self.cap is not None:
-                cap = min(cap, max(self.cap, s + k))
-            G = np.empty((cap, cap))
-            G[:s, :s] = self.G[:s, :s]
-            self.G = G
-        self.G[:s, s:s + k] = Y[self.verts]
-        self.G[s:s + k, :s] = self.G[:s, s:s + k].T
-        B = Y[cv]
-        self.G[s:s + k, s:s + k] = 0.5 * (B + B.T)
-        self.pos[cv] = np.arange(s, s + k)
-        self.verts = np.concatenate([self.verts, cv])
-
-    def block(self, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
-        return self.G[np.ix_(self.pos[rows], self.pos[cols])]
-
-
 class _Run:
-    """One call of :meth:`BBWSolver.solve`: the dual active-set iterations."""
+    """One call of :meth:`BBWSolver.solve` on the free block of ``P``.
+
+    The box QPs (``0 <= w <= 1``) are :class:`.qp.DualActiveSet`'s, given the shared
+    factor (with this run's solve threads) and the mesh's 1-ring among the free
+    vertices as the graph of its candidate rule; the partition-of-unity variant
+    couples the functions and uses the same pieces.
+    """
 
     def __init__(self, solver: BBWSolver, P: _Prepared, tol: float, max_iter: int,
                  on_done: Callable[[int], None] | None = None, threads: int | None = None):
@@ -790,164 +634,20 @@ class _Run:
         self.n_solves = 0
         self.nu = P.U.size
 
-    def _solve_unit(self, verts: np.ndarray):
-        """Yield (chunk vertices, K^-1 E_chunk) for unit right-hand sides at ``verts``."""
-        chunk = solve_chunk(self.nu)
-        for i in range(0, verts.size, chunk):
-            cv = verts[i:i + chunk]
-            E = np.zeros((self.nu, cv.size), order="F")     # CHOLMOD's layout: no copy
-            E[cv, np.arange(cv.size)] = 1.0
-            self.n_solves += cv.size
-            yield cv, self.P.factor.solve(E, threads=self.threads)
-
-    def _candidates(self, v: np.ndarray, excluded: np.ndarray) -> np.ndarray:
-        """Vertices (local ids) to constrain next: violated local maxima, largest first."""
-        v = np.where(excluded, 0.0, v)
-        viol = v > self.delta
-        if not viol.any():
-            return np.zeros(0, dtype=np.int64)
-        v_full = np.full(self.s.n, -np.inf)
-        v_full[self.P.U] = v
-        peak = _local_maxima(v_full, self.s._adj)[self.P.U]
-        cand = np.flatnonzero(viol & peak)
-        return cand[np.argsort(-v[cand], kind="stable")][:_BATCH]
-
-    def _residual_boxes(self, x: np.ndarray, c: np.ndarray) -> float:
-        z = self.P.K @ x + c
-        return float(np.max(np.abs(x - np.clip(x - z / self.P.dK, 0.0, 1.0)), initial=0.0))
+    def _qp(self) -> DualActiveSet:
+        """The QP engine; the factor exists by now (the caller solved for ``Xu``)."""
+        P, U = self.P, self.P.U
+        bounds = np.zeros(self.nu), np.ones(self.nu)
+        return DualActiveSet(P.K, lambda B: P.factor.solve(B, threads=self.threads),
+                             lo=bounds[0], hi=bounds[1], tol=self.tol,
+                             max_iter=self.max_iter, neighbors=self.s._adj[U][:, U],
+                             backend=P.factor.backend, dK=P.dK, on_done=self.on_done)
 
     # ---- independent functions, 0 <= w <= 1 --------------------------------------------
     def boxes(self, Xu: np.ndarray, C: np.ndarray):
-        nu, m = Xu.shape
-        X = Xu.copy()
-        schur = [_Schur(v=np.int64, upper=bool) for _ in range(m)]   # working set S_j
-        green = _Green(nu, max(64, int(np.sqrt(_CACHE_BYTES / 8))))
-        iters = np.zeros(m, dtype=np.int64)
-        done = np.zeros(m, dtype=bool)
-        for _ in range(self.max_iter):
-            new = {}
-            for j in np.flatnonzero(~done):
-                x, sj = X[:, j], schur[j]
-                excl = np.zeros(nu, dtype=bool)
-                excl[sj.get("v")] = True
-                cand = self._candidates(np.maximum(-x, x - 1.0), excl)
-                if cand.size == 0:
-                    done[j] = True
-                    if self.on_done is not None:
-                        self.on_done(1)
-                    continue
-                iters[j] += 1
-                new[j] = cand          # a dropped constraint that is violated again is new
-            if not new:
-                break
-            blocks = self._columns(green, new, {j: schur[j].meta["v"] for j in new})
-            rhs = np.zeros((nu, len(new)), order="F")
-            for col, (j, cand) in enumerate(new.items()):
-                sj = schur[j]
-                A, s = blocks[j], sj.size
-                sj.append(A[:s], A[s:], v=cand, upper=X[cand, j] > 1.0)
-                sig = self._multipliers(sj, Xu[:, j])
-                rhs[sj.get("v"), col] = sig
-            Y = self.P.factor.solve(rhs, threads=self.threads)
-            self.n_solves += rhs.shape[1]
-            for col, j in enumerate(new):
-                X[:, j] = Xu[:, j] + Y[:, col]
-        if self.on_done is not None and not done.all():
-            self.on_done(int((~done).sum()))
-        return self._finish_boxes(X, C, schur, iters)
-
-    def _columns(self, green: _Green, new: dict, slots: dict) -> dict:
-        """For each function j: ``K^-1[slots_j + new_j, new_j]``, solving only what is missing.
-
-        The new vertices of all functions are solved together (one multi-RHS solve);
-        the cache serves repeats across functions and rounds.
-        """
-        if not new:
-            return {}
-        need = np.unique(np.concatenate(list(new.values())))
-        fresh = need[green.pos[need] < 0]
-        cache_all = fresh.size <= green.room()
-        direct = {j for j, cand in new.items()
-                  if not green.has(slots[j]) or (not cache_all and not green.has(cand))}
-        if direct:           # the cache is full: these functions take rows of fresh columns
-            fresh = np.unique(np.concatenate([fresh] + [new[j] for j in direct]))
-        rows = {j: np.concatenate([slots[j], new[j]]) for j in direct}
-        blocks = {j: np.empty((rows[j].size, new[j].size)) for j in direct}
-        posmap = np.full(self.nu, -1, dtype=np.int64)
-        for cv, Y in self._solve_unit(fresh):
-            if cache_all:
-                out = green.pos[cv] < 0
-                green.add(cv[out], Y[:, out])
-            posmap[cv] = np.arange(cv.size)
-            for j in direct:
-                p = posmap[new[j]]
-                here = p >= 0
-                if here.any():
-                    blocks[j][:, here] = Y[np.ix_(rows[j], p[here])]
-            posmap[cv] = -1
-        for j, cand in new.items():
-            if j not in direct:
-                blocks[j] = green.block(np.concatenate([slots[j], cand]), cand)
-        return blocks
-
-    def _multipliers(self, sj: _Schur, xu: np.ndarray) -> np.ndarray:
-        """Solve for the live multipliers; drop those of the wrong sign until none is.
-
-        ``x_S = x_u[S] + H sigma`` must equal the bounds; ``sigma = (K x + c)[S]`` is
-        ``mu >= 0`` at a lower bound and ``-mu <= 0`` at an upper one.
-        """
-        while True:
-            v, upper = sj.get("v"), sj.get("upper")
-            sig = sj.solve(upper.astype(float) - xu[v])
-            mu = np.where(upper, -sig, sig) / self.P.dK[v]
-            bad = mu < -self.delta
-            if not bad.any():
-                return sig
-            sj.drop(bad)
-
-    def _finish_boxes(self, X, C, schur, iters):
-        nu, m = X.shape
-        res = np.zeros(m)
-        n_polish = np.zeros(m, dtype=np.int64)
-        for j in range(m):
-            x = np.clip(X[:, j], 0.0, 1.0)
-            x[schur[j].get("v")] = schur[j].get("upper").astype(float)
-            r = self._residual_boxes(x, C[:, j])
-            if r > self.tol:
-                x, r, n_polish[j] = self._polish(x, C[:, j])
-            X[:, j], res[j] = x, r
-        return X, BBWReport(
-            iterations=iters + n_polish, kkt_residual=res,
-            n_lower=np.sum(X <= 0.0, axis=0), n_upper=np.sum(X >= 1.0, axis=0),
-            n_constraints=np.array([sj.size for sj in schur]), n_polish=n_polish,
-            converged=res <= self.tol, partition_of_unity=False, tol=self.tol,
-            backend=self.P.factor.backend)
-
-    def _polish(self, x: np.ndarray, c: np.ndarray):
-        """Primal active-set (semismooth Newton) iterations from x; sparse factor each time."""
-        K, dK = self.P.K, self.P.dK
-        lo, hi = x <= 0.0, x >= 1.0
-        best = (x, self._residual_boxes(x, c))
-        for it in range(1, _POLISH_ITER + 1):
-            F = np.flatnonzero(~(lo | hi))
-            y = np.where(hi, 1.0, 0.0)
-            if F.size:
-                rhs = -(c + K @ y)[F]
-                y[F] = Factor(K[F][:, F], self.P.factor.backend).solve(rhs)
-            z = K @ y + c
-            yc = np.clip(y, 0.0, 1.0)
-            r = self._residual_boxes(yc, c)
-            if r < best[1]:
-                best = (yc, r)
-            if r <= self.tol:
-                return yc, r, it
-            ztol = self.delta * dK
-            new_lo = (y < 0.0) | (lo & (z >= -ztol))
-            new_hi = (y > 1.0) | (hi & (z <= ztol))
-            if np.array_equal(new_lo, lo) and np.array_equal(new_hi, hi):
-                break
-            lo, hi = new_lo, new_hi
-        return best[0], best[1], it
+        res = self._qp().run(Xu, C)
+        self.n_solves += res.n_solves
+        return res.x, res
 
     # ---- all functions jointly, w >= 0 and sum_j w_j = 1 --------------------------------
     def pou(self, Xu: np.ndarray, C: np.ndarray):
@@ -958,6 +658,7 @@ class _Run:
         dual system couples the functions through ``(delta_jl - 1/m) K^-1``.
         """
         nu, m = Xu.shape
+        qp = self._qp()
         X = Xu.copy()
         green = _Green(nu, None)                  # the coupled system needs every pair
         schur = _Schur(j=np.int64, v=np.int64)    # constraint w_j(v) = 0
@@ -969,7 +670,7 @@ class _Run:
             full = excl.sum(axis=1) >= m - 1      # a last free function must stay free
             new_j, new_v = [], []
             for j in range(m):
-                cand = self._candidates(-X[:, j], excl[:, j] | full)
+                cand = qp.candidates(-X[:, j], excl[:, j] | full)
                 new_j.append(np.full(cand.size, j))
                 new_v.append(cand)
             new_j, new_v = np.concatenate(new_j), np.concatenate(new_v)
@@ -978,7 +679,7 @@ class _Run:
             iters += 1
             add = np.unique(new_v)
             add = add[green.pos[add] < 0]
-            for cv_, Y in self._solve_unit(add):
+            for cv_, Y in qp.solve_unit(add):
                 green.add(cv_, Y)
             if new_v.size:
                 aj, av = schur.meta["j"], schur.meta["v"]
@@ -998,6 +699,7 @@ class _Run:
             rhs -= rhs.sum(axis=1, keepdims=True) / m
             X = Xu + self.P.factor.solve(rhs)
             self.n_solves += m
+        self.n_solves += qp.n_solves
         cons_j, cons_v = schur.get("j"), schur.get("v")
         X = np.maximum(X, 0.0)
         X[cons_v, cons_j] = 0.0
