@@ -1,0 +1,116 @@
+"""The layout shows the architecture: maths, then data, then front ends.
+
+Walks every import statement in ``src/stbs`` (lazy ones inside functions too) with
+``ast`` and fails on an import against the layering, naming the file and line:
+
+- no module of the maths tier imports the data tier or a front end, and no module of
+  the data tier imports a front end (front ends depend on the core, never the
+  reverse);
+- no subpackage imports another subpackage's private modules or private names
+  (those starting with ``_``); the package root's own private helpers
+  (``stbs._checks``, ``stbs._optional``) serve every tier.
+"""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+import pytest
+
+SRC = Path(__file__).resolve().parents[1] / "src" / "stbs"
+
+MATHS = {"_checks", "_optional", "geometry", "transforms", "skeleton", "pose", "skinning",
+         "weights", "meshing", "shapes"}
+DATA = {"rig", "io"}
+FRONT = {"cli", "demo", "bench", "viewer"}
+TIER = {**{m: 0 for m in MATHS}, **{m: 1 for m in DATA}, **{m: 2 for m in FRONT}}
+NAMES = ("maths", "data", "front end")
+
+
+def _modules():
+    for p in sorted(SRC.rglob("*.py")):
+        rel = p.relative_to(SRC.parent).with_suffix("")
+        parts = list(rel.parts)
+        if parts[-1] == "__init__":
+            parts = parts[:-1]
+        yield p, parts
+
+
+def _imports(path: Path, parts: list[str]):
+    """(line, imported module as parts, imported names) for every import of stbs."""
+    tree = ast.parse(path.read_text(encoding="utf-8"), filename=str(path))
+    package = parts if path.name == "__init__.py" else parts[:-1]
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            for a in node.names:
+                if a.name.split(".")[0] == "stbs":
+                    yield node.lineno, a.name.split("."), []
+        elif isinstance(node, ast.ImportFrom):
+            if node.level:
+                base = package[:len(package) - node.level + 1]
+                mod = base + (node.module.split(".") if node.module else [])
+            elif node.module and node.module.split(".")[0] == "stbs":
+                mod = node.module.split(".")
+            else:
+                continue
+            names = [a.name for a in node.names]
+            # "from . import x" / "from .. import io": x may be a module
+            yield node.lineno, mod, names
+
+
+def _top(parts: list[str]) -> str | None:
+    return parts[1] if len(parts) > 1 else None
+
+
+def violations() -> list[str]:
+    out = []
+    for path, parts in _modules():
+        here = _top(parts)
+        if here is None:            # stbs/__init__.py: the public facade
+            continue
+        here_tier = TIER.get(here)
+        for line, mod, names in _imports(path, parts):
+            where = f"{path.relative_to(SRC.parent)}:{line}"
+            targets = [mod] if not names else [mod + [n] for n in names]
+            for t in targets:
+                other = _top(t)
+                if other is None or other not in TIER:
+                    continue
+                if here_tier is not None and TIER[other] > here_tier:
+                    out.append(f"{where}: {NAMES[here_tier]} module {'.'.join(parts)} imports "
+                               f"{NAMES[TIER[other]]} {'.'.join(t[:3])}")
+                if other != here and not other.startswith("_"):
+                    private = [p for p in t[2:] if p.startswith("_")]
+                    if private:
+                        out.append(f"{where}: {'.'.join(parts)} imports {'.'.join(t)}, private "
+                                   f"to stbs.{other}")
+    return out
+
+
+def test_every_top_level_module_has_a_tier():
+    tops = {p.stem for p in SRC.glob("*.py")} | {p.parent.name for p in SRC.glob("*/__init__.py")}
+    missing = sorted(tops - set(TIER) - {"__init__", "__main__"})
+    assert not missing, f"modules without a tier in this test: {missing}"
+
+
+def test_imports_follow_the_layers():
+    bad = violations()
+    assert not bad, "\n".join(bad)
+
+
+@pytest.mark.parametrize("source, expect", [
+    ("from ..cli import main\n", "imports front end stbs.cli"),
+    ("from ..io._atomic import atomic_open\n", "private to stbs.io"),
+    ("from ..weights.bbw import _blas_threads\n", "private to stbs.weights"),
+    ("from ..io import read_mesh\n", "imports data stbs.io"),
+])
+def test_the_walk_catches_what_it_should(tmp_path, monkeypatch, source, expect):
+    # A fake maths module placed in a copy of the layout: the check must name it.
+    root = tmp_path / "stbs"
+    (root / "meshing").mkdir(parents=True)
+    (root / "__init__.py").write_text("")
+    (root / "meshing" / "__init__.py").write_text("")
+    (root / "meshing" / "bad.py").write_text(source)
+    monkeypatch.setattr(__import__(__name__), "SRC", root)
+    assert any(expect in v for v in violations()), violations()
