@@ -1,4 +1,4 @@
-"""stbs.posefile.read_pose: both JSON forms, names and indices, degrees, every bad input."""
+"""stbs.io.read_pose and write_pose: both JSON forms, names and indices, degrees, bad input."""
 
 import json
 import math
@@ -236,3 +236,87 @@ def test_type_errors(sk3):
         read_pose({}, "skeleton")
     with pytest.raises(TypeError, match="path_or_dict"):
         read_pose(42, sk3)
+
+
+# ----------------------------------------------------------------------------- write_pose
+
+
+def _chain3d():
+    C = [[0, 0, 0], [1, 0, 0], [2, 0.5, 0], [3, 0.5, 0.5], [1, 1, 0]]
+    BE = [[0, 1], [1, 2], [2, 3], [1, 4]]
+    return stbs.Skeleton(C, BE, names=["upper", "fore", "hand", "side"])
+
+
+def _same(p, q, atol=1e-12):
+    for a in ("rotations", "origins", "stretch", "twist"):
+        np.testing.assert_allclose(getattr(p, a), getattr(q, a), atol=atol, err_msg=a)
+
+
+@pytest.mark.parametrize("degrees", [True, False])
+def test_write_pose_fk_round_trip(tmp_path, degrees):
+    from stbs.io import write_pose
+
+    sk = _chain3d()
+    rng = np.random.default_rng(3)
+    L = stbs.transforms.axis_angle_to_matrix(rng.normal(size=(4, 3)), rng.uniform(-3, 3, 4))
+    pose = stbs.forward_kinematics(sk, rotations=L, stretch=[1.2, 0.7, 1.0, 2.0],
+                                   twist=np.radians([30, 0, 400, -90, 10]),
+                                   translation=[0.5, -1, 2])
+    path = tmp_path / "p.json"
+    write_pose(path, pose, degrees=degrees)
+    obj = json.loads(path.read_text())
+    assert set(obj) <= {"rotate", "stretch", "twist", "translate", "degrees"}
+    assert obj["degrees"] is degrees and "hand" not in obj.get("stretch", {})
+    _same(read_pose(path, sk), pose)
+
+
+def test_write_pose_joints_form_when_forward_kinematics_cannot(tmp_path):
+    from stbs.io import pose_to_dict, write_pose
+
+    sk = _chain3d()
+    Cp = np.array(sk.C) + np.random.default_rng(1).normal(scale=0.2, size=sk.C.shape)
+    theta = np.zeros((4, 2))
+    theta[2] = np.radians([45, 200])        # a non-root start twist: not fk-expressible
+    pose = stbs.Pose.from_joints(sk, Cp, twist=theta)
+    obj = pose_to_dict(pose)
+    assert "joints" in obj and obj["twist"] == {"hand": [pytest.approx(45), pytest.approx(200)]}
+    write_pose(tmp_path / "j.json", pose)
+    _same(read_pose(tmp_path / "j.json", sk), pose)
+    with pytest.raises(ValueError, match="bone 2 .'hand'. twists at its start but is not a root"):
+        pose_to_dict(pose, form="fk")
+
+
+def test_write_pose_2d_and_rest(tmp_path):
+    from stbs.io import pose_to_dict, write_pose
+
+    sk = stbs.Skeleton([[0, 0], [1, 0], [2, 0]], [[0, 1], [1, 2]])
+    assert pose_to_dict(stbs.Pose.rest(sk)) == {"degrees": True}
+    pose = stbs.forward_kinematics(sk, rotations=[0.4, -1.1], stretch=[1.5, 1.0])
+    write_pose(tmp_path / "p.json", pose, form="fk")
+    _same(read_pose(tmp_path / "p.json", sk), pose)
+    write_pose(tmp_path / "q.json", pose, form="joints")
+    _same(read_pose(tmp_path / "q.json", sk), pose)
+
+
+def test_write_pose_refuses_what_no_form_describes_and_leaves_files_alone(tmp_path):
+    from stbs.io import pose_to_dict, write_pose
+
+    sk = _chain3d()
+    rest = stbs.Pose.rest(sk)
+    origins = np.array(rest.origins)
+    origins[1] += [0, 0, 0.3]               # the forearm leaves the elbow
+    rolled = stbs.transforms.axis_angle_to_matrix(np.array(sk.axes), np.full(4, 0.5))
+    pose = stbs.Pose(sk, rotations=rolled, origins=origins)
+    with pytest.raises(ValueError, match="neither pose-file form") as exc:
+        pose_to_dict(pose)
+    assert "does not start at the posed end" in str(exc.value)
+    assert "joint 1" in str(exc.value)
+    target = tmp_path / "keep.json"
+    target.write_text("{}")
+    with pytest.raises(ValueError):
+        write_pose(target, pose)
+    assert target.read_text() == "{}"
+    with pytest.raises(ValueError, match="form must be one of auto, fk, joints"):
+        pose_to_dict(rest, form="bvh")
+    with pytest.raises(TypeError, match="pose must be a stbs.Pose"):
+        pose_to_dict(sk)
