@@ -82,6 +82,27 @@ def vertices(V: Any, *, name: str = "V") -> np.ndarray:
     return a
 
 
+def skeleton(sk: Any, V: Any = None, *, name: str = "V") -> np.ndarray | None:
+    """Check that ``sk`` is a :class:`stbs.Skeleton` and, given ``V``, that it fits it.
+
+    The one check of a skeleton argument (the weights functions all call it), so a
+    wrong one reads the same everywhere: ``TypeError`` for something that is not a
+    Skeleton, ``ValueError`` when ``V`` (validated by :func:`vertices`) has not
+    ``sk.dim`` columns. Returns ``V`` as float64 (None when not given).
+    """
+    from .skeleton import Skeleton
+
+    if not isinstance(sk, Skeleton):
+        raise TypeError(f"sk must be a stbs.Skeleton, got {type(sk).__name__}")
+    if V is None:
+        return None
+    V = vertices(V, name=name)
+    if V.shape[1] != sk.dim:
+        raise ValueError(f"{name} must have shape ({V.shape[0]}, {sk.dim}) to match the "
+                         f"{sk.dim}D skeleton sk, got {V.shape}")
+    return V
+
+
 def _dense_or_sparse(name: str, X: Any, n: int, b: int) -> np.ndarray | sp.csr_array:
     if sp.issparse(X):
         X = sp.csr_array(X, dtype=np.float64)
