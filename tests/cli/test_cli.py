@@ -13,7 +13,6 @@ import pytest
 import stbs
 from stbs.cli import main
 from stbs.cli.deform import METHODS as CLI_METHODS
-from stbs.cli.deform import boundary_faces
 from stbs.demo import bar
 from stbs import Rig
 from stbs.io import read_mesh, save_rig, write_dmat, write_mesh, write_tgf
@@ -190,18 +189,6 @@ def test_deform_2d_rig(capsys, case):
     assert (code, err) == (0, "")
     U = read_mesh(d / "out2.obj").V
     np.testing.assert_allclose(U, [[1, 0], [1, 2], [-1, 2], [-1, 0]], atol=1e-12)
-
-
-def test_boundary_faces_of_tetrahedra():
-    V = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1], [1, 1, 1.0]])
-    T = np.array([[0, 1, 2, 3], [1, 2, 3, 4]])
-    T[1] = T[1, [1, 0, 2, 3]]  # mixed orientations
-    F = boundary_faces(V, T)
-    assert F.shape == (6, 3)  # 8 faces, the shared one dropped
-    a, b, c = V[F[:, 0]], V[F[:, 1]], V[F[:, 2]]
-    centre = V.mean(axis=0)
-    normals = np.cross(b - a, c - a)
-    assert np.all(np.einsum("ij,ij->i", normals, a - centre) > 0)  # outward
 
 
 def test_tet_rig_writes_the_boundary(capsys, tmp_path):

@@ -86,6 +86,16 @@ def test_boundary_faces_of_a_cube_point_outwards_whatever_the_tet_orientation():
         boundary_faces(np.zeros((2, 3), int))
 
 
+def test_boundary_faces_of_two_tets_of_mixed_orientation():
+    V = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1], [1, 1, 1.0]])
+    T = np.array([[0, 1, 2, 3], [1, 2, 3, 4]])
+    T[1] = T[1, [1, 0, 2, 3]]
+    F = boundary_faces(T, V)
+    assert F.shape == (6, 3)  # 8 faces, the shared one dropped
+    normals = face_normals(V, F)
+    assert np.all(np.einsum("ij,ij->i", normals, V[F[:, 0]] - V.mean(axis=0)) > 0)
+
+
 def test_vertex_normals_of_a_tetrahedron_and_an_isolated_vertex():
     V = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1], [9, 9, 9]], float)
     F = np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]])

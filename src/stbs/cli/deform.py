@@ -162,22 +162,6 @@ def _validate(r: _Rig, method: str) -> None:
         r.E = projection(r.V, r.sk)
 
 
-def boundary_faces(V, T):
-    """Outward triangles (f, 3) on the boundary of tetrahedra T (t, 4) over vertices V."""
-    import numpy as np
-
-    T = np.asarray(T, dtype=np.int64)
-    a, b, c, d = (V[T[:, k]] for k in range(4))
-    if V.shape[1] == 3:
-        neg = np.einsum("ij,ij->i", d - a, np.cross(b - a, c - a)) < 0
-        T = np.where(neg[:, None], T[:, [0, 2, 1, 3]], T)
-    # For a positively oriented tet (a, b, c, d) these faces point outward.
-    faces = T[:, [[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]]].reshape(-1, 3)
-    key = np.sort(faces, axis=1)
-    _, inv, cnt = np.unique(key, axis=0, return_inverse=True, return_counts=True)
-    return faces[cnt[inv.ravel()] == 1]
-
-
 def _same_file(p: Path, inputs: list[Path]) -> Path | None:
     if not p.exists():
         return None
@@ -193,6 +177,7 @@ def _same_file(p: Path, inputs: list[Path]) -> Path | None:
 def _write(out: Path, ext: str, U, r: _Rig, method: str) -> None:
     import numpy as np
 
+    from ..geometry import boundary_faces
     from ..io import atomic_open, write_mesh
 
     if ext == ".npz":
@@ -209,7 +194,7 @@ def _write(out: Path, ext: str, U, r: _Rig, method: str) -> None:
     else:
         F = r.F
         if F is None and r.T is not None:
-            F = boundary_faces(r.V, r.T)
+            F = boundary_faces(r.T, r.V)
         elif F is None:
             warnings.warn(f"the mesh has no triangles; {out} holds the vertices only",
                           UserWarning, stacklevel=2)
