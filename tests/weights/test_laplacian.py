@@ -30,9 +30,9 @@ def test_right_triangle_by_hand():
                        [0.5, -0.5, 0.0],
                        [0.5, 0.0, -0.5]])
     np.testing.assert_allclose(L, expect, atol=1e-15)
-    Mv = massmatrix(RIGHT_V, RIGHT_F, "voronoi").diagonal()
+    Mv = massmatrix(RIGHT_V, RIGHT_F, type="voronoi").diagonal()
     np.testing.assert_allclose(Mv, [0.25, 0.125, 0.125], atol=1e-15)
-    Mb = massmatrix(RIGHT_V, RIGHT_F, "barycentric").diagonal()
+    Mb = massmatrix(RIGHT_V, RIGHT_F, type="barycentric").diagonal()
     np.testing.assert_allclose(Mb, [1 / 6] * 3, atol=1e-15)
     assert element_measures(RIGHT_V, RIGHT_F) == pytest.approx([0.5])
 
@@ -72,19 +72,19 @@ def test_properties_on_random_meshes(kind):
     if kind == "tet":
         V = rng.normal(size=(40, 3))
         from scipy.spatial import Delaunay
-        E = Delaunay(V).simplices
+        Ele = Delaunay(V).simplices
     else:
         P = rng.random((40, 2))
         from scipy.spatial import Delaunay
-        E = Delaunay(P).simplices
+        Ele = Delaunay(P).simplices
         V = P if kind == "tri2" else np.c_[P, 0.3 * np.sin(3 * P[:, 0])]
-    L = cotmatrix(V, E)
-    M = massmatrix(V, E)
+    L = cotmatrix(V, Ele)
+    M = massmatrix(V, Ele)
     A = L.toarray()
     np.testing.assert_allclose(A, A.T, atol=1e-12)
     np.testing.assert_allclose(A.sum(axis=1), 0.0, atol=1e-10)
     assert np.linalg.eigvalsh(A).max() < 1e-10 * np.abs(A).max()    # negative semi-definite
-    assert M.diagonal().sum() == pytest.approx(element_measures(V, E).sum(), rel=1e-12)
+    assert M.diagonal().sum() == pytest.approx(element_measures(V, Ele).sum(), rel=1e-12)
     assert np.all(M.diagonal() > 0)
     # a linear function has zero Laplacian at interior vertices
     f = V @ rng.normal(size=V.shape[1])
@@ -96,7 +96,7 @@ def test_properties_on_random_meshes(kind):
     # rigid motions change nothing
     if V.shape[1] == 3:
         W = V @ rotation(rng).T + 5.0
-        np.testing.assert_allclose(cotmatrix(W, E).toarray(), A, atol=1e-10)
+        np.testing.assert_allclose(cotmatrix(W, Ele).toarray(), A, atol=1e-10)
 
 
 def test_scaling():
@@ -137,17 +137,17 @@ def test_flat_tetrahedron_and_repeated_vertex():
 
 
 def test_bad_input():
-    with pytest.raises(ValueError, match=r"E must have shape \(f, 3\)"):
+    with pytest.raises(ValueError, match=r"Ele must have shape \(f, 3\)"):
         cotmatrix(RIGHT_V, np.array([[0, 1]]))
     with pytest.raises(ValueError, match="tetrahedra need 3D vertices"):
         cotmatrix(RIGHT_V, np.array([[0, 1, 2, 0]]))
     with pytest.raises(ValueError, match="indices in 0..2"):
         cotmatrix(RIGHT_V, np.array([[0, 1, 3]]))
     with pytest.raises(ValueError, match="type must be one of"):
-        massmatrix(RIGHT_V, RIGHT_F, "full")
+        massmatrix(RIGHT_V, RIGHT_F, type="full")
     V, T = regular_tet()
     with pytest.raises(ValueError, match="voronoi"):
-        massmatrix(V, T, "voronoi")
+        massmatrix(V, T, type="voronoi")
     with pytest.raises(ValueError, match="degenerate must be one of"):
         cotmatrix(RIGHT_V, RIGHT_F, degenerate="ignore")
 
@@ -160,12 +160,35 @@ def test_bad_input():
 def test_matches_libigl(shared_data, path):
     igl = pytest.importorskip("igl")
     m = read_mesh(shared_data / path)
-    E = m.T if m.T is not None else m.F
-    L, Li = cotmatrix(m.V, E), igl.cotmatrix(m.V, E)
+    Ele = m.T if m.T is not None else m.F
+    L, Li = cotmatrix(m.V, Ele), igl.cotmatrix(m.V, Ele)
     assert abs(L - Li).max() <= 1e-10 * abs(Li).max()     # libigl: also negative semi-definite
-    M, Mi = massmatrix(m.V, E), igl.massmatrix(m.V, E)
+    M, Mi = massmatrix(m.V, Ele), igl.massmatrix(m.V, Ele)
     assert abs(M - Mi).max() <= 1e-12 * abs(Mi).max()
-    if E.shape[1] == 3:
-        Mb = massmatrix(m.V, E, "barycentric")
-        Mbi = igl.massmatrix(m.V, E, igl.MASSMATRIX_TYPE_BARYCENTRIC)
+    if Ele.shape[1] == 3:
+        Mb = massmatrix(m.V, Ele, type="barycentric")
+        Mbi = igl.massmatrix(m.V, Ele, igl.MASSMATRIX_TYPE_BARYCENTRIC)
         assert abs(Mb - Mbi).max() <= 1e-12 * abs(Mbi).max()
+
+
+# -- the elements' name (E means endpoint weights) ----------------------------------------------
+@pytest.mark.parametrize("func", [cotmatrix, massmatrix, element_measures])
+def test_elements_keyword_E_is_deprecated(func):
+    want = func(RIGHT_V, RIGHT_F)
+    want = want.toarray() if hasattr(want, "toarray") else want
+    got = func(RIGHT_V, Ele=RIGHT_F)
+    np.testing.assert_array_equal(got.toarray() if hasattr(got, "toarray") else got, want)
+    with pytest.warns(DeprecationWarning, match=rf"{func.__name__}\(E=...\) is deprecated.*Ele"):
+        old = func(RIGHT_V, E=RIGHT_F)
+    np.testing.assert_array_equal(old.toarray() if hasattr(old, "toarray") else old, want)
+    with pytest.raises(TypeError, match="got both 'Ele' and its deprecated name 'E'"):
+        func(RIGHT_V, RIGHT_F, E=RIGHT_F)
+    with pytest.raises(TypeError, match="got both"):
+        func(RIGHT_V, Ele=RIGHT_F, E=RIGHT_F)
+
+
+def test_options_are_keyword_only():
+    with pytest.raises(TypeError):
+        massmatrix(RIGHT_V, RIGHT_F, "voronoi")
+    with pytest.raises(TypeError):
+        cotmatrix(RIGHT_V, RIGHT_F, "skip")

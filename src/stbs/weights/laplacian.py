@@ -29,6 +29,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from .. import _checks
+from ._deprecate import renamed
 
 __all__ = ["cotmatrix", "massmatrix", "element_measures", "DEGENERATE_EPS", "MASS_TYPES"]
 
@@ -39,26 +40,26 @@ MASS_TYPES: tuple[str, ...] = ("default", "voronoi", "barycentric")
 _DEGENERATE = ("raise", "skip")
 
 
-def _mesh(V, E, name: str) -> tuple[np.ndarray, np.ndarray]:
-    """Validate ``V`` (n, d) and elements ``E`` (e, 3) or (e, 4) indexing into it."""
+def _mesh(V, Ele, name: str) -> tuple[np.ndarray, np.ndarray]:
+    """Validate ``V`` (n, d) and elements ``Ele`` (e, 3) or (e, 4) indexing into it."""
     V = _checks.vertices(V)
-    E = _checks.index_array(name, E, ndim=2)
+    Ele = _checks.index_array(name, Ele, ndim=2)
     n, d = V.shape
-    if E.shape[1] not in (3, 4):
+    if Ele.shape[1] not in (3, 4):
         raise ValueError(f"{name} must have shape (f, 3) for triangles or (t, 4) for "
-                         f"tetrahedra, got {E.shape}")
-    if E.shape[1] == 4 and d != 3:
+                         f"tetrahedra, got {Ele.shape}")
+    if Ele.shape[1] == 4 and d != 3:
         raise ValueError(f"{name}: tetrahedra need 3D vertices, but V has shape {V.shape}")
-    if E.size and (E.min() < 0 or E.max() >= n):
-        bad = int(E.min()) if E.min() < 0 else int(E.max())
+    if Ele.size and (Ele.min() < 0 or Ele.max() >= n):
+        bad = int(Ele.min()) if Ele.min() < 0 else int(Ele.max())
         raise ValueError(f"{name} must hold vertex indices in 0..{n - 1}, got {bad}")
-    return V, E
+    return V, Ele
 
 
-def _element_data(V: np.ndarray, E: np.ndarray):
+def _element_data(V: np.ndarray, Ele: np.ndarray):
     """Per-element measure, hat-gradient Gram ``B G^-1 B^T`` and degeneracy flags."""
-    k = E.shape[1] - 1
-    X = V[E]                                            # (e, k+1, d)
+    k = Ele.shape[1] - 1
+    X = V[Ele]                                          # (e, k+1, d)
     D = X[:, 1:, :] - X[:, :1, :]                       # (e, k, d), rows are edges
     G = np.einsum("eid,ejd->eij", D, D)                 # (e, k, k)
     if k == 2:
@@ -86,14 +87,14 @@ def _element_data(V: np.ndarray, E: np.ndarray):
                 adj[:, j, i] = G[:, i1, j1] * G[:, i2, j2] - G[:, i1, j2] * G[:, i2, j1]
     # longest edge of each element, for the relative degeneracy test
     pairs = [(a, b) for a in range(k + 1) for b in range(a + 1, k + 1)]
-    lmax = np.zeros(E.shape[0])
+    lmax = np.zeros(Ele.shape[0])
     for a, b in pairs:
         lmax = np.maximum(lmax, np.linalg.norm(X[:, a] - X[:, b], axis=1))
     degenerate = measure <= DEGENERATE_EPS * lmax**k
     safe = np.where(degenerate, 1.0, det)
     Ginv = adj / safe[:, None, None]
     # B G^-1 B^T with B = [-1 .. -1; I]: pad G^-1 with the row/column sums.
-    H = np.empty((E.shape[0], k + 1, k + 1))
+    H = np.empty((Ele.shape[0], k + 1, k + 1))
     H[:, 1:, 1:] = Ginv
     H[:, 0, 1:] = -Ginv.sum(axis=1)
     H[:, 1:, 0] = -Ginv.sum(axis=2)
@@ -101,44 +102,48 @@ def _element_data(V: np.ndarray, E: np.ndarray):
     return measure, H, degenerate
 
 
-def _handle_degenerate(E, degenerate, how: str, name: str) -> np.ndarray:
+def _handle_degenerate(Ele, degenerate, how: str, name: str) -> np.ndarray:
     _checks.choice("degenerate", how, _DEGENERATE)
     if np.any(degenerate):
         if how == "raise":
             i = int(np.flatnonzero(degenerate)[0])
-            kind = "triangle" if E.shape[1] == 3 else "tetrahedron"
+            kind = "triangle" if Ele.shape[1] == 3 else "tetrahedron"
             raise ValueError(
-                f"{name}: {kind} {i} (vertices {E[i].tolist()}) is degenerate (zero "
-                f"{'area' if E.shape[1] == 3 else 'volume'}; {int(degenerate.sum())} such "
+                f"{name}: {kind} {i} (vertices {Ele[i].tolist()}) is degenerate (zero "
+                f"{'area' if Ele.shape[1] == 3 else 'volume'}; {int(degenerate.sum())} such "
                 f"elements); fix the mesh or pass degenerate='skip' to leave them out")
     return ~degenerate
 
 
-def element_measures(V, E) -> np.ndarray:
+@renamed("E", "Ele")
+def element_measures(V, Ele) -> np.ndarray:
     """Unsigned areas (triangles) or volumes (tetrahedra) of the elements.
 
     Parameters
     ----------
     V : (n, d) float
-    E : (e, 3) or (e, 4) int
+    Ele : (e, 3) or (e, 4) int
+        Triangles or tetrahedra (the keyword ``E=`` is deprecated).
 
     Returns
     -------
     (e,) float64
     """
-    V, E = _mesh(V, E, "E")
-    return _element_data(V, E)[0]
+    V, Ele = _mesh(V, Ele, "Ele")
+    return _element_data(V, Ele)[0]
 
 
-def cotmatrix(V, E, *, degenerate: Literal["raise", "skip"] = "raise") -> sp.csc_array:
+@renamed("E", "Ele")
+def cotmatrix(V, Ele, *, degenerate: Literal["raise", "skip"] = "raise") -> sp.csc_array:
     """Cotangent Laplacian (negative semi-definite, as libigl's ``cotmatrix``).
 
     Parameters
     ----------
     V : (n, d) float
         Vertex positions, d = 2 or 3.
-    E : (f, 3) int or (t, 4) int
-        Triangles (2D, or a surface in 3D) or tetrahedra (3D).
+    Ele : (f, 3) int or (t, 4) int
+        Triangles (2D, or a surface in 3D) or tetrahedra (3D). The keyword ``E=`` is
+        deprecated (``E`` means endpoint weights).
     degenerate : {"raise", "skip"}
         What to do with zero-measure elements (see the module docstring).
 
@@ -153,28 +158,46 @@ def cotmatrix(V, E, *, degenerate: Literal["raise", "skip"] = "raise") -> sp.csc
     ------
     ValueError
         For bad shapes or indices, or a degenerate element with ``degenerate="raise"``.
+
+    Examples
+    --------
+    The right triangle (0, 0), (1, 0), (0, 1): the 45-degree corners weigh the legs
+    with cot(45) / 2 = 1/2, the right angle weighs the hypotenuse with cot(90) = 0.
+
+    >>> import numpy as np
+    >>> V = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]])
+    >>> L = cotmatrix(V, np.array([[0, 1, 2]]))
+    >>> np.round(L.toarray(), 12) + 0.0
+    array([[-1. ,  0.5,  0.5],
+           [ 0.5, -0.5,  0. ],
+           [ 0.5,  0. , -0.5]])
     """
-    V, E = _mesh(V, E, "E")
-    measure, H, deg = _element_data(V, E)
-    keep = _handle_degenerate(E, deg, degenerate, "E")
-    E, K = E[keep], -(measure[keep, None, None] * H[keep])
-    s = E.shape[1]
-    rows = np.repeat(E, s, axis=1).ravel()
-    cols = np.tile(E, (1, s)).ravel()
+    V, Ele = _mesh(V, Ele, "Ele")
+    measure, H, deg = _element_data(V, Ele)
+    keep = _handle_degenerate(Ele, deg, degenerate, "Ele")
+    Ele, K = Ele[keep], -(measure[keep, None, None] * H[keep])
+    s = Ele.shape[1]
+    rows = np.repeat(Ele, s, axis=1).ravel()
+    cols = np.tile(Ele, (1, s)).ravel()
     n = V.shape[0]
     L = sp.csc_array((K.ravel(), (rows, cols)), shape=(n, n))
     L.sum_duplicates()
     return L
 
 
-def massmatrix(V, E, type: Literal["default", "voronoi", "barycentric"] = "default", *,
+MassType = Literal["default", "voronoi", "barycentric"]
+
+
+@renamed("E", "Ele")
+def massmatrix(V, Ele, *, type: MassType = "default",
                degenerate: Literal["raise", "skip"] = "raise") -> sp.dia_array:
     """Lumped (diagonal) mass matrix.
 
     Parameters
     ----------
     V : (n, d) float
-    E : (f, 3) int or (t, 4) int
+    Ele : (f, 3) int or (t, 4) int
+        Triangles or tetrahedra (the keyword ``E=`` is deprecated).
     type : {"default", "voronoi", "barycentric"}
         ``"barycentric"``: each element gives a third (triangles) or a quarter
         (tetrahedra) of its measure to each corner. ``"voronoi"`` (triangles only):
@@ -190,22 +213,22 @@ def massmatrix(V, E, type: Literal["default", "voronoi", "barycentric"] = "defau
         element gets mass 0.
     """
     _checks.choice("type", type, MASS_TYPES)
-    V, E = _mesh(V, E, "E")
+    V, Ele = _mesh(V, Ele, "Ele")
     if type == "default":
-        type = "voronoi" if E.shape[1] == 3 else "barycentric"
-    if type == "voronoi" and E.shape[1] != 3:
-        raise ValueError("type='voronoi' needs triangles E (f, 3); use 'barycentric' for "
-                         f"tetrahedra, got E with shape {E.shape}")
-    measure, H, deg = _element_data(V, E)
-    keep = _handle_degenerate(E, deg, degenerate, "E")
-    E, measure, H = E[keep], measure[keep], H[keep]
-    s = E.shape[1]
+        type = "voronoi" if Ele.shape[1] == 3 else "barycentric"
+    if type == "voronoi" and Ele.shape[1] != 3:
+        raise ValueError("type='voronoi' needs triangles Ele (f, 3); use 'barycentric' for "
+                         f"tetrahedra, got Ele with shape {Ele.shape}")
+    measure, H, deg = _element_data(V, Ele)
+    keep = _handle_degenerate(Ele, deg, degenerate, "Ele")
+    Ele, measure, H = Ele[keep], measure[keep], H[keep]
+    s = Ele.shape[1]
     if type == "barycentric":
         m = np.repeat(measure[:, None] / s, s, axis=1)
     else:
         # cot(theta_k) / 2 = -K_ij = -measure * H_ij for the corner k opposite edge ij.
         half_cot = -measure[:, None] * np.stack([H[:, 1, 2], H[:, 2, 0], H[:, 0, 1]], axis=1)
-        X = V[E]
+        X = V[Ele]
         l2 = np.stack([np.sum((X[:, (i + 1) % 3] - X[:, (i + 2) % 3]) ** 2, axis=1)
                        for i in range(3)], axis=1)     # l2[:, i]: edge opposite corner i
         # Voronoi part of corner i: (|e_ij|^2 cot theta_k + |e_ik|^2 cot theta_j) / 8
@@ -217,5 +240,5 @@ def massmatrix(V, E, type: Literal["default", "voronoi", "barycentric"] = "defau
         obtuse = half_cot < 0
         any_obtuse = obtuse.any(axis=1)
         m[any_obtuse] = np.where(obtuse[any_obtuse], 0.5, 0.25) * measure[any_obtuse, None]
-    diag = np.bincount(E.ravel(), weights=m.ravel(), minlength=V.shape[0])
+    diag = np.bincount(Ele.ravel(), weights=m.ravel(), minlength=V.shape[0])
     return sp.dia_array((diag[None, :], [0]), shape=(V.shape[0], V.shape[0]))
