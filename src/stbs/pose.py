@@ -12,8 +12,7 @@ __all__ = ["Pose", "forward_kinematics"]
 
 
 def _check_skeleton(sk) -> Skeleton:
-    if not isinstance(sk, Skeleton):
-        raise TypeError(f"sk must be a stbs.Skeleton, got {type(sk).__name__}")
+    _checks.skeleton(sk)
     return sk
 
 

@@ -359,7 +359,7 @@ def test_bad_options(kwargs, match):
 
 
 def test_not_a_skeleton():
-    with pytest.raises(ValueError, match="sk must be a stbs.Skeleton"):
+    with pytest.raises(TypeError, match="sk must be a stbs.Skeleton"):
         triangulate_2d(SQUARE, np.zeros((2, 2)))
 
 

@@ -98,5 +98,5 @@ def test_wrong_skeleton_argument():
     V, F, sk = u_shape()
     with pytest.raises(TypeError, match="sk must be a stbs.Skeleton, got ndarray"):
         stbs.build_rig(V, sk.C, F=F)
-    with pytest.raises(ValueError, match="V has 3 columns but sk is 2D"):
+    with pytest.raises(ValueError, match=r"V must have shape \(\d+, 2\) to match the 2D"):
         stbs.build_rig(np.c_[V, V[:, :1]], sk, F=F)

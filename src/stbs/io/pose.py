@@ -72,6 +72,7 @@ from typing import Any
 
 import numpy as np
 
+from .. import _checks
 from .. import transforms as tf
 from ..pose import Pose, forward_kinematics
 from ..skeleton import Skeleton
@@ -109,8 +110,7 @@ def read_pose(path_or_dict: str | os.PathLike | Mapping[str, Any], sk: Skeleton)
         ``sk`` is not a :class:`stbs.Skeleton`, or ``path_or_dict`` is neither a
         path nor a mapping.
     """
-    if not isinstance(sk, Skeleton):
-        raise TypeError(f"sk must be a stbs.Skeleton, got {type(sk).__name__}")
+    _checks.skeleton(sk)
     if isinstance(path_or_dict, Mapping):
         src, obj = "pose", path_or_dict
     elif isinstance(path_or_dict, (str, os.PathLike)):

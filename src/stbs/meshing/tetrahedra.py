@@ -142,8 +142,7 @@ def tetrahedralize(V, F, sk: Skeleton, *, max_volume: float | None = None,
     >>> bool((tm.V[:len(m.V)] == m.V).all())  # doctest: +SKIP
     True
     """
-    if not isinstance(sk, Skeleton):
-        raise ValueError(f"sk must be a stbs.Skeleton, got {type(sk).__name__}")
+    _checks.skeleton(sk)
     engine = _checks.choice("engine", engine, ENGINES_3D)
     if max_volume is not None:
         max_volume = float(max_volume)

@@ -117,8 +117,7 @@ def triangulate_2d(outline, sk: Skeleton, *, max_area: float | None = None,
     >>> bool(np.all(m.V[m.joint_vertex] == sk.C))
     True
     """
-    if not isinstance(sk, Skeleton):
-        raise ValueError(f"sk must be a stbs.Skeleton, got {type(sk).__name__}")
+    _checks.skeleton(sk)
     if sk.dim != 2:
         raise ValueError(f"sk must be a 2-D skeleton for triangulate_2d, got a {sk.dim}-D one "
                          "(C has 3 columns); use tetrahedralize for 3-D shapes")

@@ -108,12 +108,8 @@ def build_rig(V, sk: Skeleton, *, F=None, T=None, W=None,
     from ..meshing import tetrahedralize, triangulate_2d
     from ..weights import bone_heat, bone_weights, endpoint_weights
 
-    V = _checks.vertices(V)
-    if not isinstance(sk, Skeleton):
-        raise TypeError(f"sk must be a stbs.Skeleton, got {type(sk).__name__}")
+    V = _checks.skeleton(sk, V)
     n, d = V.shape
-    if sk.dim != d:
-        raise ValueError(f"V has {d} columns but sk is {sk.dim}D")
     _choice("bone", bone, BONE_METHODS)
     _choice("endpoint", endpoint, ENDPOINT_METHODS)
     tol = float(tol)

@@ -50,8 +50,7 @@ class Deformer:
 
     def __init__(self, V, sk: Skeleton, W, E=None, *, method: Method = "stbs-dqs",
                  dtype=None, max_influences: int | None = None, normals=None):
-        if not isinstance(sk, Skeleton):
-            raise TypeError(f"sk must be a stbs.Skeleton, got {type(sk).__name__}")
+        _checks.skeleton(sk)
         self.method = _checks.choice("method", method, METHODS)
         if dtype is None:
             dtype = np.float32 if getattr(V, "dtype", None) == np.float32 else np.float64
