@@ -202,7 +202,7 @@ def test_unconstrained_part_and_stray_vertex():
 
 def test_bad_solver_input():
     V, F, sk = u_shape()
-    with pytest.raises(ValueError, match="E must have shape"):
+    with pytest.raises(ValueError, match="Ele must have shape"):
         BBWSolver(V, F[:, :2])
     with pytest.raises(ValueError, match="backend must be one of"):
         BBWSolver(V, F, backend="mkl")
@@ -232,8 +232,10 @@ def test_bone_weights_validation():
         bone_weights(V, sk, F=F, T=np.zeros((1, 4), dtype=int))
     with pytest.raises(ValueError, match=r"V must have shape \(\d+, 2\) to match the 2D"):
         bone_weights(np.c_[V, np.zeros(len(V))], sk, F=F)
-    with pytest.raises(ValueError, match="method must be one of 'bbw'"):
-        bone_weights(V, sk, "heat", F=F)
+    with pytest.raises(ValueError, match="method must be one of 'bbw', 'heat'"):
+        bone_weights(V, sk, method="harmonic", F=F)
+    with pytest.raises(ValueError, match="method='heat' needs a 3D triangle surface F"):
+        bone_weights(V, sk, method="heat", F=F)
     with pytest.raises(ValueError, match=r"F must have shape \(\?, 3\)"):
         bone_weights(V, sk, F=np.zeros((2, 4), dtype=int))
     sk3 = stbs.Skeleton(np.array([[0, 0, 0.0], [0, 0, 1]]), np.array([[0, 1]]))
@@ -408,3 +410,54 @@ def test_solve_chunk_rule_and_small_chunks_give_the_same_answer(u_case, monkeypa
     W2 = BBWSolver(V, F).solve(b, bc, restrict=False)
     assert max(calls) == 8 and len(calls) > 20
     np.testing.assert_allclose(W2, W, atol=1e-9)
+
+
+# -- API: bone heat through bone_weights, keyword-only options, the elements' name ---------------
+def test_bone_weights_heat_is_bone_heat_on_a_surface():
+    from rigs import icosphere
+    from stbs.weights.heat import bone_heat
+
+    V, F = icosphere(2)
+    sk = stbs.Skeleton([[0, 0, -0.5], [0, 0, 0.0], [0, 0, 0.5]], [[0, 1], [1, 2]])
+    seen = []
+    W = bone_weights(V, sk, method="heat", F=F, progress=lambda d, t: seen.append((d, t)))
+    np.testing.assert_array_equal(W, bone_heat(V, F, sk))
+    assert seen == [(2, 2)]
+    with pytest.raises(ValueError, match=r"method='heat' needs the 3D triangle surface F"):
+        bone_weights(V, sk, method="heat")
+    T = np.array([[0, 1, 2, 3]])
+    with pytest.raises(ValueError, match="not on tetrahedra T; pass F, got T only"):
+        bone_weights(V, sk, method="heat", T=T)
+    with pytest.raises(ValueError, match="not on tetrahedra T: leave T out"):
+        bone_weights(V, sk, method="heat", F=F, T=T)
+    for option in ("partition_of_unity", "samples", "tol"):
+        with pytest.raises(ValueError, match=f"{option} applies to method='bbw' only"):
+            bone_weights(V, sk, method="heat", F=F, **{option: 1})
+
+
+def test_options_are_keyword_only():
+    V, F, sk = u_shape()
+    with pytest.raises(TypeError):
+        bone_weights(V, sk, "bbw", F=F)
+    with pytest.raises(TypeError):
+        BBWSolver(V, F, "scipy")
+
+
+def test_elements_keyword_E_is_deprecated(u_case):
+    V, F, sk, b, bc, solver, W, rep = u_case
+    with pytest.warns(DeprecationWarning, match=r"BBWSolver\(E=...\) is deprecated.*Ele"):
+        old = BBWSolver(V, E=F)
+    np.testing.assert_array_equal(old.solve(b, bc), W)
+    np.testing.assert_array_equal(old.Ele, F)
+    with pytest.warns(DeprecationWarning, match=r"BBWSolver.E is deprecated"):
+        np.testing.assert_array_equal(old.E, F)
+    with pytest.warns(DeprecationWarning, match=r"bbw\(E=...\) is deprecated"):
+        np.testing.assert_array_equal(bbw(V, b=b, bc=bc, E=F), W)
+    np.testing.assert_array_equal(bbw(V, Ele=F, b=b, bc=bc), W)
+    with pytest.raises(TypeError, match="got both 'Ele' and its deprecated name 'E'"):
+        BBWSolver(V, F, E=F)
+    with pytest.raises(TypeError, match="got both 'Ele' and its deprecated name 'E'"):
+        bbw(V, F, b, bc, E=F)
+    import inspect
+    assert list(inspect.signature(BBWSolver).parameters)[:2] == ["V", "Ele"]
+    assert list(inspect.signature(bbw).parameters)[:4] == ["V", "Ele", "b", "bc"]

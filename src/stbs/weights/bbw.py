@@ -33,6 +33,12 @@ The result is checked against the KKT conditions of the original QP on every ver
 (the *natural residual* ``max |x - clip(x - (K x + c) / diag K, 0, 1)|``, in weight
 units); a function that misses ``tol`` is finished by a primal active-set
 (semismooth Newton) polish with sparse factorizations of the free-variable system.
+
+Steps 2-4, the KKT check and the polish are the box-constrained QP solver of
+:mod:`stbs.weights.qp`, which knows no mesh: this module brings the mesh (``L``,
+``M``, the 1-ring as the graph of step 2), the boundary conditions, the factor and
+its threads, the parts of the mesh and their scheduling, and the
+partition-of-unity variant (which couples the functions, from the same pieces).
 """
 
 from __future__ import annotations
@@ -54,14 +60,16 @@ from .. import _checks
 from ..skeleton import Skeleton
 from . import _cholmod
 from ._cholesky import Factor
+from ._deprecate import renamed
 from .laplacian import cotmatrix, massmatrix
 from .qp import DualActiveSet, _Green, _Schur
 
 __all__ = ["BBWSolver", "BBWReport", "BBWConvergenceWarning", "bbw", "bone_weights",
            "BONE_METHODS"]
 
+BoneMethod = Literal["bbw", "heat"]
 #: Methods of :func:`bone_weights`.
-BONE_METHODS: tuple[str, ...] = ("bbw",)
+BONE_METHODS: tuple[str, ...] = ("bbw", "heat")
 
 _REGION_MAX = 0.2     # a function whose part exceeds this share of the mesh uses the whole
 _MARGIN_RINGS = 3     # rings added around a function's cells
@@ -210,8 +218,10 @@ class BBWSolver:
     ----------
     V : (n, d) float
         Vertex positions, d = 2 or 3.
-    E : (f, 3) int or (t, 4) int
-        Triangles (a 2D mesh, or a surface in 3D) or tetrahedra (3D volume).
+    Ele : (f, 3) int or (t, 4) int
+        The elements: triangles ``F`` (a 2D mesh, or a surface in 3D) or tetrahedra
+        ``T`` (3D volume). The keyword ``E=`` is deprecated (``E`` means endpoint
+        weights, DESIGN §1).
     backend : {"auto", "cholmod", "cholespy", "scipy"}
         Sparse Cholesky backend (:mod:`stbs.weights._cholesky`).
     mass : {"default", "voronoi", "barycentric"}
@@ -228,6 +238,9 @@ class BBWSolver:
 
     Attributes
     ----------
+    V : (n, d) float64
+    Ele : (e, 3) or (e, 4) int64
+        The mesh, as validated.
     L : (n, n) sparse
         Cotangent Laplacian (negative semi-definite).
     M : (n, n) sparse diagonal
@@ -239,22 +252,35 @@ class BBWSolver:
 
     Examples
     --------
-    >>> W = BBWSolver(V, T).solve(b, bc)                       # doctest: +SKIP
-    >>> solver = BBWSolver(V, T); W = solver.solve(b, bc); print(solver.last_report)
-    ...                                                          # doctest: +SKIP
+    A 4 x 1 strip of 8 triangles, one function held at 1 on the left edge and one on
+    the right edge (``b``: vertex ids, ``bc``: one column per function):
+
+    >>> import numpy as np
+    >>> x, y = np.meshgrid(np.arange(5.0), np.arange(2.0), indexing="ij")
+    >>> V = np.c_[x.ravel(), y.ravel()]           # vertex 2 i + j at (i, j)
+    >>> q = 2 * np.arange(4)
+    >>> F = np.r_[np.c_[q, q + 2, q + 3], np.c_[q, q + 3, q + 1]]
+    >>> solver = BBWSolver(V, F)
+    >>> W = solver.solve([0, 1, 8, 9], [[1, 0], [1, 0], [0, 1], [0, 1]])
+    >>> W.shape, bool(W.min() >= 0 and W.max() <= 1), solver.last_report.all_converged
+    ((10, 2), True, True)
+    >>> W[4].round(6)                             # the middle: equally far from both ends
+    array([0.5, 0.5])
     """
 
-    def __init__(self, V, E, *, backend: Literal["auto", "cholmod", "cholespy", "scipy"] = "auto",
+    @renamed("E", "Ele")
+    def __init__(self, V, Ele, *,
+                 backend: Literal["auto", "cholmod", "cholespy", "scipy"] = "auto",
                  mass: Literal["default", "voronoi", "barycentric"] = "default",
                  degenerate: Literal["raise", "skip"] = "raise",
                  blas_threads: int | None = 1, threads: int | None = None):
         V = _checks.vertices(V)
-        E = _checks.index_array("E", E, ndim=2)
-        if E.shape[1] not in (3, 4) or E.shape[0] == 0:
-            raise ValueError(f"E must have shape (f, 3) (triangles) or (t, 4) (tetrahedra) "
-                             f"with at least one element, got {E.shape}")
+        Ele = _checks.index_array("Ele", Ele, ndim=2)
+        if Ele.shape[1] not in (3, 4) or Ele.shape[0] == 0:
+            raise ValueError(f"Ele must have shape (f, 3) (triangles) or (t, 4) (tetrahedra) "
+                             f"with at least one element, got {Ele.shape}")
         _checks.choice("backend", backend, ("auto", "cholmod", "cholespy", "scipy"))
-        self.V, self.E, self.backend = V, E, backend
+        self.V, self.Ele, self.backend = V, Ele, backend
         if blas_threads is not None and int(blas_threads) < 1:
             raise ValueError(f"blas_threads must be >= 1 or None, got {blas_threads}")
         self.blas_threads = blas_threads
@@ -262,8 +288,8 @@ class BBWSolver:
             raise ValueError(f"threads must be >= 1 or None, got {threads}")
         self.threads = _cholmod.default_threads() if threads is None else int(threads)
         self.n = int(V.shape[0])
-        self.L = cotmatrix(V, E, degenerate=degenerate)
-        self.M = massmatrix(V, E, mass, degenerate=degenerate)
+        self.L = cotmatrix(V, Ele, degenerate=degenerate)
+        self.M = massmatrix(V, Ele, type=mass, degenerate=degenerate)
         m = self.M.diagonal()
         minv = np.divide(1.0, m, out=np.zeros_like(m), where=m > 0)
         self.Q = sp.csr_array(self.L @ sp.diags_array(minv) @ self.L)
@@ -273,13 +299,22 @@ class BBWSolver:
         A.eliminate_zeros()
         A.data[:] = 1.0
         self._referenced = np.zeros(self.n, dtype=bool)
-        self._referenced[E.ravel()] = True
-        # Every row needs an entry for _local_maxima; an isolated vertex points to itself.
+        self._referenced[Ele.ravel()] = True
+        # Every row has an entry (the 1-ring graph of the QP's candidate rule and of the
+        # parts' rings): an isolated vertex points to itself.
         self._adj = sp.csr_array(A + sp.diags_array((np.diff(A.indptr) == 0).astype(float)))
         self._n_comp, self._comp = connected_components(A, directed=False)
         self._prepared: _Prepared | None = None
         self._graph: sp.csr_array | None = None
         self.last_report: BBWReport | None = None
+
+    @property
+    def E(self) -> np.ndarray:
+        """Deprecated name of :attr:`Ele` (``E`` means endpoint weights)."""
+        warnings.warn("BBWSolver.E is deprecated and will be removed in the next release: "
+                      "the elements are BBWSolver.Ele (E means endpoint weights, DESIGN §1)",
+                      DeprecationWarning, stacklevel=2)
+        return self.Ele
 
     # ----------------------------------------------------------------------------------
     def _check_bc(self, b, bc, partition_of_unity: bool) -> tuple[np.ndarray, np.ndarray]:
@@ -716,15 +751,17 @@ class _Run:
 
 
 # --------------------------------------------------------------------------------------
-def bbw(V, E, b, bc, *, partition_of_unity: bool = False, tol: float = 1e-10,
+@renamed("E", "Ele")
+def bbw(V, Ele, b, bc, *, partition_of_unity: bool = False, tol: float = 1e-10,
         max_iter: int = 200, backend: Literal["auto", "cholmod", "cholespy", "scipy"] = "auto"
         ) -> np.ndarray:
-    """One-shot bounded biharmonic weights: ``BBWSolver(V, E).solve(b, bc, ...)``.
+    """One-shot bounded biharmonic weights: ``BBWSolver(V, Ele).solve(b, bc, ...)``.
 
     Parameters
     ----------
     V : (n, d) float
-    E : (f, 3) or (t, 4) int
+    Ele : (f, 3) or (t, 4) int
+        Triangles or tetrahedra (the keyword ``E=`` is deprecated).
     b : (k,) int
     bc : (k, m) float
     partition_of_unity, tol, max_iter, backend
@@ -734,13 +771,36 @@ def bbw(V, E, b, bc, *, partition_of_unity: bool = False, tol: float = 1e-10,
     -------
     W : (n, m) float64
     """
-    return BBWSolver(V, E, backend=backend).solve(
+    return BBWSolver(V, Ele, backend=backend).solve(
         b, bc, partition_of_unity=partition_of_unity, tol=tol, max_iter=max_iter)
 
 
-def bone_weights(V, sk: Skeleton, method: Literal["bbw"] = "bbw", *, F=None, T=None,
-                 partition_of_unity: bool = False, samples: int | None = None,
-                 tol: float = 1e-10,
+def _heat_bone_weights(V: np.ndarray, sk: Skeleton, F, T, options: dict, progress):
+    """``bone_weights(method="heat")``: bone heat on the 3D surface ``F`` (as ``stbs rig``)."""
+    from .heat import bone_heat
+
+    for name, value in options.items():
+        if value is not None:
+            raise ValueError(f"{name} applies to method='bbw' only, got {name}={value!r} "
+                             "with method='heat'")
+    if sk.dim != 3:
+        raise ValueError("method='heat' needs a 3D triangle surface F; for a 2D shape use "
+                         "method='bbw' (or stbs.weights.bone_heat, which takes 2D triangles)")
+    if T is not None:
+        raise ValueError("method='heat' works on the surface triangles F (visibility and "
+                         "diffusion live on it), not on tetrahedra T"
+                         + (": leave T out" if F is not None else "; pass F, got T only"))
+    if F is None:
+        raise ValueError("method='heat' needs the 3D triangle surface F (f, 3), got F=None")
+    W = bone_heat(V, F, sk)
+    if progress is not None:
+        progress(sk.n_bones, sk.n_bones)
+    return W
+
+
+def bone_weights(V, sk: Skeleton, *, method: BoneMethod = "bbw", F=None, T=None,
+                 partition_of_unity: bool | None = None, samples: int | None = None,
+                 tol: float | None = None,
                  progress: Callable[[int, int], None] | None = None) -> np.ndarray:
     """Bone weights W (n, b) for a skeleton, rows summing to 1 (DESIGN §4).
 
@@ -749,62 +809,93 @@ def bone_weights(V, sk: Skeleton, method: Literal["bbw"] = "bbw", *, F=None, T=N
     V : (n, d) float
         Rest vertex positions, d = ``sk.dim``.
     sk : Skeleton
-    method : {"bbw"}
-        Bounded biharmonic weights on a triangle mesh (2D) or tetrahedral mesh (3D).
+    method : {"bbw", "heat"}
+        ``"bbw"``: bounded biharmonic weights on a triangle mesh ``F`` (2D) or a
+        tetrahedral mesh ``T`` (3D). ``"heat"``: bone heat (Baran & Popović 2007,
+        :func:`stbs.weights.bone_heat`) on a 3D triangle surface ``F``, as
+        ``stbs rig --bone heat``.
     F : (f, 3) int, optional
-        Triangles; required in 2D.
+        Triangles: required in 2D (``"bbw"``), and the surface for ``"heat"``.
     T : (t, 4) int, optional
         Tetrahedra; required in 3D for ``"bbw"``.
-    partition_of_unity : bool
-        Solve with ``sum_i w_i = 1`` as a constraint (slower); otherwise the
-        independent solutions are normalised afterwards, as in the BBW paper.
+    partition_of_unity : bool, optional
+        ``"bbw"`` only: solve with ``sum_i w_i = 1`` as a constraint (slower);
+        otherwise (the default) the independent solutions are normalised afterwards,
+        as in the BBW paper.
     samples : int, optional
-        Samples per bone for meshes without bone vertices (see
+        ``"bbw"`` only: samples per bone for meshes without bone vertices (see
         :func:`stbs.weights.boundary.boundary_conditions`).
-    tol : float
-        KKT tolerance of the QP.
+    tol : float, optional
+        ``"bbw"`` only: KKT tolerance of the QP (default 1e-10).
     progress : callable, optional
-        ``progress(done, total)`` after each bone's function is solved.
+        ``progress(done, total)`` after each bone's function is solved (``"heat"``:
+        once, at the end).
 
     Returns
     -------
     W : (n, b) float64
-        ``W >= 0``, rows sum to 1, ``W[:, i] = 1`` on the vertices lying on bone i only.
+        ``W >= 0``, rows sum to 1. ``"bbw"``: ``W[:, i] = 1`` on the vertices lying on
+        bone i only.
 
     Raises
     ------
+    TypeError
+        When ``sk`` is not a :class:`stbs.Skeleton`.
     ValueError
-        For mismatched dimensions, missing elements (naming the one needed), a bone
-        no vertex can be attached to, or a vertex that all weights leave at 0.
+        For an unknown method, a ``"bbw"`` option given with ``"heat"``, mismatched
+        dimensions, missing elements (naming the ones needed), a bone no vertex can be
+        attached to, or a vertex that all weights leave at 0.
+
+    Examples
+    --------
+    A 4 x 2 grid of squares, two bones along its middle line:
+
+    >>> import numpy as np
+    >>> import stbs
+    >>> x, y = np.meshgrid(np.arange(5.0), np.arange(3.0), indexing="ij")
+    >>> V = np.c_[x.ravel(), y.ravel()]           # vertex 3 i + j at (i, j)
+    >>> q = np.array([3 * i + j for i in range(4) for j in range(2)])
+    >>> F = np.r_[np.c_[q, q + 3, q + 4], np.c_[q, q + 4, q + 1]]
+    >>> sk = stbs.Skeleton([[0.0, 1.0], [2.0, 1.0], [4.0, 1.0]], [[0, 1], [1, 2]])
+    >>> W = bone_weights(V, sk, F=F)
+    >>> W.shape, bool(np.allclose(W.sum(axis=1), 1))
+    ((15, 2), True)
+    >>> W[[1, 7, 13]].round(6)                    # on bone 0, the shared joint, on bone 1
+    array([[1. , 0. ],
+           [0.5, 0.5],
+           [0. , 1. ]])
     """
     from .boundary import boundary_conditions
 
     _checks.choice("method", method, BONE_METHODS)
-    if not isinstance(sk, Skeleton):
-        raise TypeError(f"sk must be a stbs.Skeleton, got {type(sk).__name__}")
-    V = _checks.vertices(V)
-    if V.shape[1] != sk.dim:
-        raise ValueError(f"V must have shape ({V.shape[0]}, {sk.dim}) to match the {sk.dim}D "
-                         f"skeleton, got {V.shape}")
+    V = _checks.skeleton(sk, V)
+    if progress is not None and not callable(progress):
+        raise TypeError(f"progress must be callable(done, total) or None, "
+                        f"got {type(progress).__name__}")
+    if method == "heat":
+        return _heat_bone_weights(V, sk, F, T, {"partition_of_unity": partition_of_unity,
+                                                "samples": samples, "tol": tol}, progress)
+    partition_of_unity = bool(partition_of_unity)
+    tol = 1e-10 if tol is None else tol
     if sk.dim == 2:
         if T is not None:
             raise ValueError("T (tetrahedra) was given for a 2D mesh; 2D BBW needs triangles F")
         if F is None:
             raise ValueError("method='bbw' in 2D needs triangles F (f, 3), got F=None")
-        E = _checks.index_array("F", F, ndim=2, shape=(None, 3))
+        Ele = _checks.index_array("F", F, ndim=2, shape=(None, 3))
     else:
         if T is None:
             raise ValueError("method='bbw' in 3D needs a tetrahedral mesh T (t, 4) of the "
                              "volume, got T=None" + (" (F alone is a surface: tetrahedralise "
                                                      "it first)" if F is not None else ""))
-        E = _checks.index_array("T", T, ndim=2, shape=(None, 4))
-    if E.size and (E.min() < 0 or E.max() >= V.shape[0]):
-        name = "F" if E.shape[1] == 3 else "T"
-        bad = int(E.min()) if E.min() < 0 else int(E.max())
+        Ele = _checks.index_array("T", T, ndim=2, shape=(None, 4))
+    if Ele.size and (Ele.min() < 0 or Ele.max() >= V.shape[0]):
+        name = "F" if Ele.shape[1] == 3 else "T"
+        bad = int(Ele.min()) if Ele.min() < 0 else int(Ele.max())
         raise ValueError(f"{name} must hold vertex indices in 0..{V.shape[0] - 1}, got {bad}")
-    b, bc = boundary_conditions(V, sk, F=E if E.shape[1] == 3 else None,
-                                T=E if E.shape[1] == 4 else None, samples=samples)
-    solver = BBWSolver(V, E)
+    b, bc = boundary_conditions(V, sk, F=Ele if Ele.shape[1] == 3 else None,
+                                T=Ele if Ele.shape[1] == 4 else None, samples=samples)
+    solver = BBWSolver(V, Ele)
     W = solver.solve(b, bc, partition_of_unity=partition_of_unity, tol=tol, progress=progress)
     s = W.sum(axis=1)
     if np.any(s <= 1e-12):
