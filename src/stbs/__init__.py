@@ -50,7 +50,14 @@ __all__ = ["Skeleton", "Pose", "forward_kinematics", "Deformer", "deform", "METH
            "__version__"]
 
 
+#: Subpackages reachable as attributes (``stbs.shapes.cigar``), imported on first use.
+_SUBPACKAGES = ("geometry", "transforms", "skinning", "weights", "meshing", "shapes", "rig",
+                "io", "cli", "demo", "bench")
+
+
 def __getattr__(name: str):
+    if name in _SUBPACKAGES:
+        return importlib.import_module(f"stbs.{name}")
     module = _EXPORTS.get(name)
     if module is None:
         raise AttributeError(f"module 'stbs' has no attribute {name!r}")
@@ -60,7 +67,7 @@ def __getattr__(name: str):
 
 
 def __dir__() -> list[str]:
-    return sorted(__all__)
+    return sorted([*__all__, *_SUBPACKAGES])
 
 
 if TYPE_CHECKING:  # pragma: no cover - for type checkers and IDEs

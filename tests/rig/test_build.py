@@ -100,3 +100,18 @@ def test_wrong_skeleton_argument():
         stbs.build_rig(V, sk.C, F=F)
     with pytest.raises(ValueError, match=r"V must have shape \(\d+, 2\) to match the 2D"):
         stbs.build_rig(np.c_[V, V[:, :1]], sk, F=F)
+
+
+def test_inputs_are_checked_before_any_work(monkeypatch):
+    import stbs.weights as weights
+
+    def no_work(*a, **kw):
+        raise AssertionError("weights were computed before the inputs were checked")
+
+    monkeypatch.setattr(weights, "bone_weights", no_work)
+    monkeypatch.setattr(weights, "endpoint_weights", no_work)
+    V, F, sk = u_shape()
+    with pytest.raises(ValueError, match="endpoint='heat' needs a 3D triangle surface"):
+        stbs.build_rig(V, sk, F=F, endpoint="heat")
+    with pytest.raises(ValueError, match=r"W must have shape \(\d+, 3\)"):
+        stbs.build_rig(V, sk, F=F, W=np.ones((len(V), 2)), endpoint="projection")

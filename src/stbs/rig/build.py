@@ -20,7 +20,7 @@ from typing import Literal
 
 from .. import _checks
 from ..skeleton import Skeleton
-from .model import Rig
+from .model import Rig, _weights
 
 __all__ = ["build_rig", "BONE_METHODS", "ENDPOINT_METHODS", "DEFAULT_TOL"]
 
@@ -131,11 +131,17 @@ def build_rig(V, sk: Skeleton, *, F=None, T=None, W=None,
             return lambda done, total: say(label, done, total)
         return None
 
+    if endpoint == "heat" and (d != 3 or F is None):    # checked before any work is done
+        raise ValueError("endpoint='heat' needs a 3D triangle surface F")
     keep_W = W is not None
+    if keep_W:
+        W = _weights("W", W, n, sk.n_bones)
     meshes_itself = not keep_W and bone == "bbw" and T is None and (d == 3 or remesh)
     if clip_skeleton and not meshes_itself:
         raise ValueError("clip_skeleton applies when stbs meshes the shape itself (bone='bbw' "
                          "without T: a 2D mesh, or a 3D surface)")
+    if keep_W and endpoint in ("bbw", "bbw-joints") and F is None and T is None:
+        raise ValueError(f"endpoint={endpoint!r} needs the mesh's triangles F or tetrahedra T")
     if keep_W:
         Vm, Fm, Tm = V, F, T
         Wm = W
@@ -167,17 +173,12 @@ def build_rig(V, sk: Skeleton, *, F=None, T=None, W=None,
         Wm = bone_weights(Vm, sk, method="bbw", F=Fm if Tm is None else None, T=Tm, tol=tol,
                           progress=stage("bone weights (bbw)", bar=True))
     if endpoint == "heat":
-        if d != 3 or F is None:
-            raise ValueError("endpoint='heat' needs a 3D triangle surface F")
         stage("endpoint weights (heat)")
         E = endpoint_weights(V, sk, method="heat", W=Wm[:n], F=F)
     elif endpoint in ("projection", "idw"):
         stage(f"endpoint weights ({endpoint})")
         E = endpoint_weights(V, sk, method=endpoint)
     else:
-        if keep_W and Fm is None and Tm is None:
-            raise ValueError(f"endpoint={endpoint!r} needs the mesh's triangles F or "
-                             "tetrahedra T")
         elem = dict(T=Tm) if Tm is not None else dict(F=Fm)
         E = endpoint_weights(Vm, sk, method=endpoint, W=Wm, tol=tol,
                              progress=stage(f"endpoint weights ({endpoint})", bar=True),
