@@ -41,7 +41,8 @@ def available(module: str) -> bool:
 
 def message(module: str, feature: str) -> str:
     """The one-line advice for a missing ``module`` that ``feature`` needs."""
-    dist, extra = EXTRAS.get(module, (module, None))
+    top = module.split(".")[0]
+    dist, extra = EXTRAS.get(top, (top, None))
     how = (f"pip install 'stbs-skinning[{extra}]'" if extra else f"pip install {dist}")
     return f"{feature} needs {dist}, which is not installed: {how}"
 

@@ -140,7 +140,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                 code = _bench.run_delegated(extra, debug=debug, parser_class=_Parser)
             else:
                 need = getattr(args._cmd, "requires", None)
-                advice = missing(need(args), f"{prog}") if need else None
+                advice = missing(need(args), "this command") if need else None
                 if advice:
                     raise OptionalDependencyError(advice)
                 code = args._cmd.run(args)

@@ -228,13 +228,10 @@ def read_image(path: str):
     """An image file as an array (H, W[, C]) for :func:`stbs.meshing.outline_from_image`."""
     import numpy as np
 
+    from .._optional import require
     from ._errors import CommandError
 
-    try:
-        from PIL import Image
-    except ImportError:
-        raise CommandError(f"{path!r}: reading images needs Pillow (pip install pillow; the "
-                           "'demo' extra brings it)") from None
+    Image = require("PIL.Image", f"reading the image {path!r}")
     try:
         with Image.open(path) as im:
             if im.mode not in ("L", "LA", "RGB", "RGBA", "1"):
@@ -261,6 +258,11 @@ def read_outline(st: _Stages, path: str, *, threshold: float, invert: bool) -> l
         raise CommandError(f"{path!r}: no shape found (nothing "
                            f"{'below' if invert else 'above'} --threshold {threshold:g})")
     return polygons
+
+
+def requires(args: argparse.Namespace) -> list[str]:
+    """Optional modules this run needs: Pillow for an image MESH."""
+    return ["PIL"] if args.mesh.lower().endswith(IMAGE_EXTENSIONS) else []
 
 
 def run(args: argparse.Namespace) -> int:
