@@ -292,3 +292,13 @@ def test_rig_outline_errors(shared_data, tmp_path, capsys, case, extra, match):
     err = capsys.readouterr().err.strip().splitlines()
     assert code == 2 and len(err) == 1 and match in err[0], err
     assert not (tmp_path / "x.npz").exists()
+
+
+def test_the_command_offers_what_the_pipeline_takes():
+    # cli.rig repeats the choices so that building the parser imports nothing heavy
+    import stbs.rig
+    from stbs.cli import rig as cli_rig
+
+    assert cli_rig.BONE == stbs.rig.BONE_METHODS
+    assert cli_rig.ENDPOINT == stbs.rig.ENDPOINT_METHODS
+    assert cli_rig.DEFAULT_TOL == stbs.rig.DEFAULT_TOL
