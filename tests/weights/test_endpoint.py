@@ -137,7 +137,7 @@ def test_fig7_projection_is_only_c0_at_the_ends():
     def slopes(method):
         t = np.array([1 - 2 * h, 1 - h, 1 + h, 1 + 2 * h, -2 * h, -h, h, 2 * h])
         V = np.stack([2 * t, 0.2 + 0 * t, 0 * t], axis=1)   # a line beside the bone
-        e = stbs.endpoint_weights(V, sk, method)[:, 0]
+        e = stbs.endpoint_weights(V, sk, method=method)[:, 0]
         return np.array([(e[1] - e[0]) / h, (e[3] - e[2]) / h,
                          (e[5] - e[4]) / h, (e[7] - e[6]) / h])
 
@@ -154,27 +154,27 @@ def test_methods_and_options_are_validated():
     V = np.zeros((3, 3))
     assert ep.ENDPOINT_METHODS == ("projection", "idw", "heat", "bbw", "bbw-joints")
     with pytest.raises(ValueError, match="method must be one of 'projection', 'idw'"):
-        stbs.endpoint_weights(V, sk, "geodesic")
+        stbs.endpoint_weights(V, sk, method="geodesic")
     with pytest.raises(ValueError, match="alpha applies to method='idw' only"):
-        stbs.endpoint_weights(V, sk, "projection", alpha=3)
+        stbs.endpoint_weights(V, sk, method="projection", alpha=3)
     with pytest.raises(ValueError, match="backend applies to method='heat' only"):
-        stbs.endpoint_weights(V, sk, "idw", backend="numpy")
+        stbs.endpoint_weights(V, sk, method="idw", backend="numpy")
     with pytest.raises(ValueError, match="tol applies to method='bbw' or method='bbw-joints'"):
-        stbs.endpoint_weights(V, sk, "heat", tol=1e-6)
+        stbs.endpoint_weights(V, sk, method="heat", tol=1e-6)
     with pytest.raises(ValueError, match="alpha must be a finite number >= 2"):
-        stbs.endpoint_weights(V, sk, "idw", alpha=1)
+        stbs.endpoint_weights(V, sk, method="idw", alpha=1)
     with pytest.raises(ValueError, match="normalize must be one of 'bone', 'all'"):
-        stbs.endpoint_weights(V, sk, "idw", normalize="joints")
+        stbs.endpoint_weights(V, sk, method="idw", normalize="joints")
     with pytest.raises(ValueError, match=r"threshold must be a number in \[0, 1\)"):
-        stbs.endpoint_weights(V, sk, "idw", threshold=2.0)
+        stbs.endpoint_weights(V, sk, method="idw", threshold=2.0)
     with pytest.raises(ValueError, match="method='heat' needs triangles F"):
-        stbs.endpoint_weights(V, sk, "heat")
+        stbs.endpoint_weights(V, sk, method="heat")
     with pytest.raises(ValueError, match=r"tetrahedra T \(t, 4\) in 3D.*F only"):
-        stbs.endpoint_weights(V, sk, "bbw", F=[[0, 1, 2]])
+        stbs.endpoint_weights(V, sk, method="bbw", F=[[0, 1, 2]])
     with pytest.raises(ValueError, match=r"T must have shape \(t, 4\)"):
-        stbs.endpoint_weights(V, sk, "bbw-joints", T=[[0, 1, 2]])
-    with pytest.raises(ValueError, match="to match the skeleton"):
-        stbs.endpoint_weights(np.zeros((3, 2)), sk, "idw")
+        stbs.endpoint_weights(V, sk, method="bbw-joints", T=[[0, 1, 2]])
+    with pytest.raises(ValueError, match="to match the 3D skeleton"):
+        stbs.endpoint_weights(np.zeros((3, 2)), sk, method="idw")
 
 
 # -- heat --------------------------------------------------------------------------------------
@@ -182,7 +182,7 @@ def test_fig8_heat_endpoint_weights_fall_short_beyond_the_handles():
     """Fig. 8: a box twisted 360 degrees at b; with heat joints the far end lags behind."""
     V, _, F = box_tets(h=0.25)
     sk = stbs.Skeleton([[1.0, 0.5, 0.5], [3.0, 0.5, 0.5]], [[0, 1]])
-    E = stbs.endpoint_weights(V, sk, "heat", F=F)
+    E = stbs.endpoint_weights(V, sk, method="heat", F=F)
     surf = np.unique(F)
     far = surf[V[surf, 0] == 4.0]
     near = surf[V[surf, 0] == 0.0]
@@ -203,7 +203,7 @@ def test_heat_endpoint_joint_outside_the_shape_stands_in_from_inside(restricted)
     W = np.ones((V.shape[0], 1)) if restricted else None
     with pytest.warns(UserWarning, match=r"1 joint\(s\) lie outside the shape.*joint 1 "
                       r"\(bone 0\): 26 % of the bone inwards"):
-        E = stbs.endpoint_weights(V, sk, "heat", F=F, W=W)
+        E = stbs.endpoint_weights(V, sk, method="heat", F=F, W=W)
     surf = np.unique(F)
     assert E[surf].min() >= 0 and E[surf].max() <= 1
     line = surf[np.isclose(V[surf, 1], 0.0) & np.isclose(V[surf, 2], 0.0)]
@@ -214,13 +214,13 @@ def test_heat_endpoint_joint_outside_the_shape_stands_in_from_inside(restricted)
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         stbs.endpoint_weights(V, stbs.Skeleton([[1.0, 0.5, 0.5], [3.0, 0.5, 0.5]], [[0, 1]]),
-                              "heat", F=F, W=W)
+                              method="heat", F=F, W=W)
 
 
 def test_fig8_bbw_endpoint_weights_reach_the_full_twist(bbw_solver):
     V, T, _ = box_tets(h=0.5 if bbw_solver == "stand-in" else 0.25)   # the stand-in is slow
     sk = stbs.Skeleton([[1.0, 0.5, 0.5], [3.0, 0.5, 0.5]], [[0, 1]])
-    E = stbs.endpoint_weights(V, sk, "bbw", T=T)
+    E = stbs.endpoint_weights(V, sk, method="bbw", T=T)
     far = V[:, 0] == 4.0
     assert 360 * E[far, 0].min() > 360 * 0.99
     assert E[V[:, 0] == 0.0, 0].max() < 0.01
@@ -234,9 +234,9 @@ def test_u_shape_idw_is_shape_unaware_heat_is_not():
     V, F = u_shape()
     sk = stbs.Skeleton([[0.5, 3.5], [0.5, 1.5]], [[0, 1]])
     tip = (V[:, 0] >= 2) & (V[:, 1] >= 3.5)
-    e_idw = stbs.endpoint_weights(V, sk, "idw")[tip, 0]
+    e_idw = stbs.endpoint_weights(V, sk, method="idw")[tip, 0]
     assert e_idw.max() < 0.5                             # pulled toward a across the gap
-    e_heat = stbs.endpoint_weights(V, sk, "heat", F=F)[tip, 0]
+    e_heat = stbs.endpoint_weights(V, sk, method="heat", F=F)[tip, 0]
     assert e_heat.min() > 0.5
 
 
@@ -245,7 +245,7 @@ def test_u_shape_bbw_is_shape_aware(bbw_solver, joints):
     V, F = u_shape(h=0.5)
     sk = stbs.Skeleton([[0.5, 3.5], [0.5, 1.5]], [[0, 1]])
     method = "bbw-joints" if joints else "bbw"
-    E = stbs.endpoint_weights(V, sk, method, F=F)
+    E = stbs.endpoint_weights(V, sk, method=method, F=F)
     # a looser KKT tolerance reaches the solver (fewer rounds) and stays close
     seen = []
     cls = ep._bbw_solver_class()
@@ -253,7 +253,7 @@ def test_u_shape_bbw_is_shape_aware(bbw_solver, joints):
     with pytest.MonkeyPatch.context() as mp:
         mp.setattr(cls, "solve", lambda self, *a, **k: seen.append(k["tol"]) or orig(
             self, *a, **k))
-        E6 = stbs.endpoint_weights(V, sk, method, F=F, tol=1e-6)
+        E6 = stbs.endpoint_weights(V, sk, method=method, F=F, tol=1e-6)
     assert seen and set(seen) == {1e-6}
     assert np.abs(E6 - E).max() < 1e-4
     tip = (V[:, 0] >= 2) & (V[:, 1] >= 3.5)
@@ -273,17 +273,17 @@ def test_restriction_solves_only_where_the_bone_has_weight():
     W = np.zeros((V.shape[0], 2))
     W[:, 0] = np.clip((2.5 - V[:, 0]) / 1.0, 0, 1)           # bone 0: nothing beyond x = 2.5
     W[:, 1] = 1 - W[:, 0]
-    E = stbs.endpoint_weights(V, sk, "heat", F=F, W=sp.csr_array(W))
+    E = stbs.endpoint_weights(V, sk, method="heat", F=F, W=sp.csr_array(W))
     P = ep.projection(V, sk)
     surf = np.unique(F)
     outside = surf[V[surf, 0] > 2.5 + 0.25]                 # beyond the support's triangles
     np.testing.assert_allclose(E[outside, 0], P[outside, 0])
     inside = surf[V[surf, 0] <= 2.0]
-    full = stbs.endpoint_weights(V, sk, "heat", F=F)
+    full = stbs.endpoint_weights(V, sk, method="heat", F=F)
     assert not np.allclose(E[inside, 0], P[inside, 0])
     assert np.abs(E[inside, 0] - full[inside, 0]).max() < 0.1   # restriction changes little
     np.testing.assert_array_equal(
-        stbs.endpoint_weights(V, sk, "heat", F=F, W=W, threshold=None), full)
+        stbs.endpoint_weights(V, sk, method="heat", F=F, W=W, threshold=None), full)
 
 
 def test_restricted_bbw_leaves_the_rest_to_projection(bbw_solver):
@@ -293,7 +293,7 @@ def test_restricted_bbw_leaves_the_rest_to_projection(bbw_solver):
     W[:, 0] = np.clip(2.5 - V[:, 0], 0, 1)
     W[:, 1] = 1 - W[:, 0]
     for method in ("bbw", "bbw-joints"):
-        E = stbs.endpoint_weights(V, sk, method, F=F, W=W)
+        E = stbs.endpoint_weights(V, sk, method=method, F=F, W=W)
         beyond = V[:, 0] > 2.75
         np.testing.assert_allclose(E[beyond, 0], ep.projection(V, sk)[beyond, 0])
         assert E.min() >= 0 and E.max() <= 1
@@ -305,7 +305,7 @@ def test_arm_heat_endpoint_weights(shared_data):
     sk = stbs.io.read_skeleton(data / "arm.tgf")
     from stbs.weights.heat import bone_heat
     W = bone_heat(mesh.V, mesh.F, sk)
-    E = stbs.endpoint_weights(mesh.V, sk, "heat", F=mesh.F, W=W)
+    E = stbs.endpoint_weights(mesh.V, sk, method="heat", F=mesh.F, W=W)
     assert E.min() >= 0 and E.max() <= 1
     P = ep.projection(mesh.V, sk)
     for i in range(sk.n_bones):
@@ -324,13 +324,13 @@ def test_bbw_joint_off_the_mesh_uses_the_nearest_vertex_and_says_how_far(bbw_sol
     V, F = grid_2d(lambda x, y: np.ones_like(x, dtype=bool), 3.0, 1.0, 0.5)
     sk = stbs.Skeleton([[0.6, 0.5], [2.0, 0.5]], [[0, 1]])
     with pytest.warns(UserWarning, match=r"joint 0 -> vertex \d+ at distance 0\.1\b"):
-        E = stbs.endpoint_weights(V, sk, "bbw", F=F)
+        E = stbs.endpoint_weights(V, sk, method="bbw", F=F)
     assert E[np.all(V == [0.5, 0.5], axis=1), 0] == pytest.approx(0.0, abs=1e-9)
     close = stbs.Skeleton([[0.6, 0.5], [0.7, 0.5]], [[0, 1]])
     for method in ("bbw", "bbw-joints"):
         with pytest.raises(ValueError, match="joints 0 and 1 map to the same mesh vertex"), \
                 pytest.warns(UserWarning):
-            stbs.endpoint_weights(V, close, method, F=F)
+            stbs.endpoint_weights(V, close, method=method, F=F)
 
 
 @pytest.mark.skipif(not HAS_BBW, reason="stbs.weights.bbw not there yet")
@@ -346,7 +346,7 @@ def test_hand_bbw_endpoint_weights_restricted(shared_data):
     dist = np.linalg.norm(V[:, None] - (A + t[..., None] * D), axis=-1)
     W = np.exp(-(dist / (0.5 * dist.min(axis=1, keepdims=True) + 0.02 * np.ptp(V)))**2)
     W /= W.sum(axis=1, keepdims=True)
-    E = stbs.endpoint_weights(V, sk, "bbw", T=T, W=W, threshold=1e-3)
+    E = stbs.endpoint_weights(V, sk, method="bbw", T=T, W=W, threshold=1e-3)
     assert E.min() >= 0 and E.max() <= 1
     P = ep.projection(V, sk)
     tol = 1e-6 * np.linalg.norm(np.ptp(V, axis=0))
@@ -398,7 +398,7 @@ def test_bones_on_threads_match_one_thread(monkeypatch, restricted, method):
         calls = []
         made.clear()
         monkeypatch.setattr(ep, "_bone_workers", lambda cls, b, w=workers: min(w, b))
-        runs[workers] = stbs.endpoint_weights(V, sk, method, progress=lambda d, b, c=calls:
+        runs[workers] = stbs.endpoint_weights(V, sk, method=method, progress=lambda d, b, c=calls:
                                               c.append((d, b)), **kw)
         # unrestricted joint weights are one solve for all joints
         one = method == "bbw-joints" and not restricted
@@ -425,7 +425,7 @@ def test_a_failing_bone_on_a_thread_raises_its_error(monkeypatch):
     monkeypatch.setattr(ep, "_bone_workers", lambda cls, b: 2)
     for W in (None, np.full((len(V), 2), 0.5)):      # the shared solver, and per region
         with pytest.raises(ValueError, match="bone region broke"):
-            stbs.endpoint_weights(V, sk, "bbw", T=T, W=W)
+            stbs.endpoint_weights(V, sk, method="bbw", T=T, W=W)
 
 
 def test_bone_workers_only_for_our_solver_on_cholmod(monkeypatch):

@@ -102,13 +102,8 @@ def boundary_conditions(V, sk: Skeleton, *, T=None, F=None, samples: int | None 
     ValueError
         For mismatched shapes, or a bone that no vertex can be attached to.
     """
-    if not isinstance(sk, Skeleton):
-        raise TypeError(f"sk must be a stbs.Skeleton, got {type(sk).__name__}")
-    V = _checks.vertices(V)
+    V = _checks.skeleton(sk, V)
     n = V.shape[0]
-    if V.shape[1] != sk.dim:
-        raise ValueError(f"V must have shape ({n}, {sk.dim}) to match the {sk.dim}D skeleton, "
-                         f"got {V.shape}")
     tol = float(tol)
     if not tol >= 0:
         raise ValueError(f"tol must be >= 0, got {tol}")

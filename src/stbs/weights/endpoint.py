@@ -50,14 +50,6 @@ ON_BONE_TOL = 1e-6
 BBW_TOL = 1e-10
 
 
-def _vertices_for(V, sk: Skeleton) -> np.ndarray:
-    V = _checks.vertices(V)
-    if V.shape[1] != sk.dim:
-        raise ValueError(f"V must have shape ({V.shape[0]}, {sk.dim}) to match the skeleton, "
-                         f"got {V.shape}")
-    return V
-
-
 def _bone_params(V: np.ndarray, sk: Skeleton) -> np.ndarray:
     """(n, b) unclamped parameter of p's projection onto each bone's line."""
     A = sk.A
@@ -81,12 +73,13 @@ def projection(V, sk: Skeleton) -> np.ndarray:
     E : (n, b) float64
         Only C0 where the projection leaves the segment (paper Fig. 7).
     """
-    V = _vertices_for(V, sk)
+    V = _checks.skeleton(sk, V)
     return np.clip(_bone_params(V, sk), 0.0, 1.0)
 
 
 def joints_to_endpoint(J, sk: Skeleton) -> np.ndarray:
     """Eq. 7: ``e_i = ((1 - j_a) + j_b) / 2`` from joint weights J (n, j) in [0, 1]."""
+    _checks.skeleton(sk)
     J = np.asarray(J, dtype=float)
     if J.ndim != 2 or J.shape[1] != sk.n_joints:
         raise ValueError(f"J must have shape (n, {sk.n_joints}), got {J.shape}")
@@ -121,7 +114,7 @@ def idw_joint_weights(V, sk: Skeleton, *, alpha: float = 2.0) -> np.ndarray:
     J : (n, j) float64
         In [0, 1], rows sum to 1, ``J[:, k] = 1`` at joint k.
     """
-    V = _vertices_for(V, sk)
+    V = _checks.skeleton(sk, V)
     alpha = _check_alpha(alpha)
     Dj = _joint_distances(V, sk.C)
     dmin = Dj.min(axis=1, keepdims=True)
@@ -156,7 +149,7 @@ def idw(V, sk: Skeleton, *, alpha: float = 2.0,
     E : (n, b) float64
         In [0, 1]; exactly 0 at ``a_i`` and 1 at ``b_i``; smooth, but shape-unaware.
     """
-    V = _vertices_for(V, sk)
+    V = _checks.skeleton(sk, V)
     alpha = _check_alpha(alpha)
     _checks.choice("normalize", normalize, IDW_NORMALIZATIONS)
     if normalize == "all":
@@ -178,14 +171,14 @@ def _threshold(threshold) -> float | None:
     return float(threshold)
 
 
-def _support_elements(E: np.ndarray, Wi: np.ndarray, threshold: float,
+def _support_elements(Ele: np.ndarray, Wi: np.ndarray, threshold: float,
                       extra: np.ndarray | None = None) -> np.ndarray:
     """Elements with a vertex where ``w_i > threshold``, plus those touching ``extra``."""
-    mask = (Wi[E] > threshold).any(axis=1)
+    mask = (Wi[Ele] > threshold).any(axis=1)
     if extra is not None and extra.size:
         touch = np.zeros(Wi.shape[0], dtype=bool)
         touch[extra] = True
-        mask |= touch[E].any(axis=1)
+        mask |= touch[Ele].any(axis=1)
     return mask
 
 
@@ -235,7 +228,7 @@ def heat_endpoint(V, F, sk: Skeleton, *, W=None, threshold: float | None = DEFAU
     """
     from .heat import BoneHeatSolver
 
-    V = _vertices_for(V, sk)
+    V = _checks.skeleton(sk, V)
     threshold = _threshold(threshold)
     n, b = V.shape[0], sk.n_bones
     W = _bone_weights(W, n, b)
@@ -320,24 +313,24 @@ def _bbw_solver_class():
 def _elements(V: np.ndarray, F, T) -> np.ndarray:
     d = V.shape[1]
     if T is not None:
-        E = _checks.index_array("T", T, ndim=2)
+        Ele = _checks.index_array("T", T, ndim=2)
         want = 4 if d == 3 else 3
-        if E.shape[1] != want:
-            raise ValueError(f"T must have shape (t, {want}) for {d}D vertices, got {E.shape}")
+        if Ele.shape[1] != want:
+            raise ValueError(f"T must have shape (t, {want}) for {d}D vertices, got {Ele.shape}")
         name = "T"
     elif d == 2 and F is not None:
-        E = _checks.index_array("F", F, ndim=2, shape=(None, 3))
+        Ele = _checks.index_array("F", F, ndim=2, shape=(None, 3))
         name = "F"
     else:
         raise ValueError("BBW endpoint weights need a volume mesh: tetrahedra T (t, 4) in 3D, "
                          "or triangles F (f, 3) (or T) in 2D; got "
                          + ("F only (a surface) in 3D" if F is not None else "neither F nor T"))
-    if E.shape[0] == 0:
-        raise ValueError(f"{name} must hold at least one element, got shape {E.shape}")
-    if E.min() < 0 or E.max() >= V.shape[0]:
-        bad = int(E.min()) if E.min() < 0 else int(E.max())
+    if Ele.shape[0] == 0:
+        raise ValueError(f"{name} must hold at least one element, got shape {Ele.shape}")
+    if Ele.min() < 0 or Ele.max() >= V.shape[0]:
+        bad = int(Ele.min()) if Ele.min() < 0 else int(Ele.max())
         raise ValueError(f"{name} must hold vertex indices in 0..{V.shape[0] - 1}, got {bad}")
-    return E
+    return Ele
 
 
 def _joint_vertices(V: np.ndarray, used: np.ndarray, sk: Skeleton, tol: float,
@@ -359,9 +352,9 @@ def _joint_vertices(V: np.ndarray, used: np.ndarray, sk: Skeleton, tol: float,
     return out, far
 
 
-def _in_elements(V: np.ndarray, El: np.ndarray, x: np.ndarray) -> bool:
-    """Whether point ``x`` lies in one of the simplices ``V[El]`` (to rounding)."""
-    P = V[El]
+def _in_elements(V: np.ndarray, Ele: np.ndarray, x: np.ndarray) -> bool:
+    """Whether point ``x`` lies in one of the simplices ``V[Ele]`` (to rounding)."""
+    P = V[Ele]
     D = np.swapaxes(P[:, 1:] - P[:, :1], 1, 2)          # (e, d, d) edge vectors as columns
     ok = np.abs(np.linalg.det(D)) > 0
     lam = np.linalg.solve(D[ok], (x - P[ok, 0])[..., None])[..., 0]
@@ -385,10 +378,10 @@ def _on_bone(V: np.ndarray, used: np.ndarray, sk: Skeleton, i: int,
     return used[on], t[on]
 
 
-def _solve_region(BBWSolver, V: np.ndarray, E: np.ndarray, mask: np.ndarray | None,
+def _solve_region(BBWSolver, V: np.ndarray, Ele: np.ndarray, mask: np.ndarray | None,
                   bidx: np.ndarray, bc: np.ndarray, cache: dict, tol: float = BBW_TOL,
                   threads: int | None = None):
-    """BBW on the elements ``E[mask]`` (all when None) with constraints ``bidx``/``bc``.
+    """BBW on the elements ``Ele[mask]`` (all when None) with constraints ``bidx``/``bc``.
 
     Components of the region holding no constrained vertex are dropped (their
     QP would be unconstrained). Returns the solved vertices and their values.
@@ -396,19 +389,19 @@ def _solve_region(BBWSolver, V: np.ndarray, E: np.ndarray, mask: np.ndarray | No
     threads). Several threads may call this at once: the whole-mesh solver in ``cache``
     is built and used under ``cache["lock"]``.
     """
-    Es = E if mask is None else E[mask]
-    verts = np.unique(Es)
+    sub = Ele if mask is None else Ele[mask]
+    verts = np.unique(sub)
     n = V.shape[0]
-    s = Es.shape[1]
-    adj = sp.coo_matrix((np.ones(s * len(Es)),
-                         (Es.ravel(), np.roll(Es, 1, axis=1).ravel())), shape=(n, n))
+    s = sub.shape[1]
+    adj = sp.coo_matrix((np.ones(s * len(sub)),
+                         (sub.ravel(), np.roll(sub, 1, axis=1).ravel())), shape=(n, n))
     _, comp = connected_components(adj, directed=False)
     keep_comp = np.unique(comp[bidx])
     keep_v = np.zeros(n, dtype=bool)
     keep_v[verts] = np.isin(comp[verts], keep_comp)
     if not keep_v[verts].all():
-        Es = Es[keep_v[Es[:, 0]]]
-        verts = np.unique(Es)
+        sub = sub[keep_v[sub[:, 0]]]
+        verts = np.unique(sub)
     # With threads given, the caller holds the BLAS thread limit for all workers:
     # threadpoolctl's limits are process-wide, so per-thread ones would undo each other.
     kw = {} if threads is None else {"threads": threads, "blas_threads": None}
@@ -416,12 +409,12 @@ def _solve_region(BBWSolver, V: np.ndarray, E: np.ndarray, mask: np.ndarray | No
         # the whole mesh: one solver (L, M, Q and the factor of a repeated b) for all
         with cache.setdefault("lock", threading.Lock()):
             if "full" not in cache:
-                cache["full"] = BBWSolver(V, Es, **kw)
+                cache["full"] = BBWSolver(V, sub, **kw)
             X = cache["full"].solve(bidx, bc, tol=tol)
         return verts, np.clip(np.asarray(X, dtype=float).reshape(n, -1), 0.0, 1.0)
     local = np.full(n, -1, dtype=np.int64)
     local[verts] = np.arange(verts.size)
-    solver = BBWSolver(V[verts], local[Es], **kw)
+    solver = BBWSolver(V[verts], local[sub], **kw)
     X = np.asarray(solver.solve(local[bidx], bc, tol=tol), dtype=float).reshape(verts.size, -1)
     return verts, np.clip(X, 0.0, 1.0)
 
@@ -477,9 +470,9 @@ def bbw_endpoint(V, sk: Skeleton, *, T=None, F=None, W=None,
     Joints without a mesh vertex on them use their nearest vertex, with a warning
     giving the distance (``ON_BONE_TOL`` of the bounding-box diagonal counts as on).
     """
-    V = _vertices_for(V, sk)
+    V = _checks.skeleton(sk, V)
     threshold = _threshold(threshold)
-    El = _elements(V, F, T)
+    Ele = _elements(V, F, T)
     n, b = V.shape[0], sk.n_bones
     W = _bone_weights(W, n, b)
     BBWSolver = _bbw_solver_class()
@@ -487,7 +480,7 @@ def bbw_endpoint(V, sk: Skeleton, *, T=None, F=None, W=None,
     E = projection(V, sk)
     restrict = W is not None and threshold is not None
     cache: dict = {}
-    used = np.unique(El)     # vertices in no element cannot carry a constraint
+    used = np.unique(Ele)     # vertices in no element cannot carry a constraint
     jv, far = _joint_vertices(V, used, sk, on_tol,
                               range(sk.n_joints) if joints else np.unique(sk.BE))
     try:
@@ -502,7 +495,7 @@ def bbw_endpoint(V, sk: Skeleton, *, T=None, F=None, W=None,
         bidx = cand
         bc = np.zeros((len(bidx), sk.n_joints))
         bc[np.arange(len(bidx)), ks] = 1.0
-        verts, X = _solve_region(BBWSolver, V, El, None, bidx, bc, cache, tol)
+        verts, X = _solve_region(BBWSolver, V, Ele, None, bidx, bc, cache, tol)
         J = np.zeros((n, sk.n_joints))
         J[verts] = X
         E[verts] = joints_to_endpoint(J[verts], sk)
@@ -525,7 +518,7 @@ def bbw_endpoint(V, sk: Skeleton, *, T=None, F=None, W=None,
                 # joint lies outside the mesh and the bone has vertices of its own (a
                 # mesh built with the skeleton clipped to the shape: e = t suffices).
                 if k in far and own and k not in outside:
-                    outside[k] = not _in_elements(V, El, sk.C[k])
+                    outside[k] = not _in_elements(V, Ele, sk.C[k])
                 if k not in far or not (own and outside[k]):
                     val[jv[k]] = value
                     if k in far:
@@ -535,10 +528,10 @@ def bbw_endpoint(V, sk: Skeleton, *, T=None, F=None, W=None,
         mask = None
         if restrict:
             own = np.array([jv[a], jv[e]]) if joints else bidx
-            mask = _support_elements(El, _column(W, i), threshold, extra=own)
+            mask = _support_elements(Ele, _column(W, i), threshold, extra=own)
             if joints:
                 inside = np.zeros(n, dtype=bool)
-                inside[np.unique(El[mask])] = True
+                inside[np.unique(Ele[mask])] = True
                 keep = inside[bidx]
                 bidx, vals = bidx[keep], vals[keep]
         tasks.append((i, mask, bidx, vals))
@@ -546,7 +539,7 @@ def bbw_endpoint(V, sk: Skeleton, *, T=None, F=None, W=None,
 
     def solve(task, threads=None):
         i, mask, bidx, vals = task
-        return (i, *_solve_region(BBWSolver, V, El, mask, bidx, vals, cache, tol, threads))
+        return (i, *_solve_region(BBWSolver, V, Ele, mask, bidx, vals, cache, tol, threads))
 
     def store(done, i, verts, X):
         E[verts, i] = X[:, 0] if not joints else 0.5 * ((1.0 - X[:, 0]) + X[:, 1])
@@ -589,7 +582,7 @@ def _unique_joint_vertices(jv: dict[int, int]) -> tuple[np.ndarray, np.ndarray]:
 
 
 # -- entry point -------------------------------------------------------------------------
-def endpoint_weights(V, sk: Skeleton, method: EndpointMethod = "projection", *,
+def endpoint_weights(V, sk: Skeleton, *, method: EndpointMethod = "projection",
                      W=None, F=None, T=None, threshold: float | None = DEFAULT_THRESHOLD,
                      alpha: float | None = None, normalize: IdwNormalization | None = None,
                      backend: _raycast.RayBackend | None = None,
@@ -635,11 +628,32 @@ def endpoint_weights(V, sk: Skeleton, method: EndpointMethod = "projection", *,
 
     Raises
     ------
+    TypeError
+        When ``sk`` is not a :class:`stbs.Skeleton`.
     ValueError
         For an unknown method, an option given to a method that does not use it, or
         a missing mesh (the message says which one the method needs).
+
+    Examples
+    --------
+    One bone along the middle line of a 4 x 2 grid of squares: BBW endpoint weights
+    run from 0 at the bone's start to 1 at its end, linearly along the bone.
+
+    >>> import numpy as np
+    >>> import stbs
+    >>> x, y = np.meshgrid(np.arange(5.0), np.arange(3.0), indexing="ij")
+    >>> V = np.c_[x.ravel(), y.ravel()]           # vertex 3 i + j at (i, j)
+    >>> q = np.array([3 * i + j for i in range(4) for j in range(2)])
+    >>> F = np.r_[np.c_[q, q + 3, q + 4], np.c_[q, q + 4, q + 1]]
+    >>> sk = stbs.Skeleton([[0.0, 1.0], [4.0, 1.0]], [[0, 1]])
+    >>> E = endpoint_weights(V, sk, method="bbw", F=F)
+    >>> E[[1, 4, 7, 10, 13], 0].round(6)          # the vertices on the bone
+    array([0.  , 0.25, 0.5 , 0.75, 1.  ])
+    >>> endpoint_weights(V, sk)[[0, 7, 14], 0]    # eq. 8, the projection onto the bone
+    array([0. , 0.5, 1. ])
     """
     _checks.choice("method", method, ENDPOINT_METHODS)
+    V = _checks.skeleton(sk, V)
     for name, value, owners in (("alpha", alpha, ("idw",)), ("normalize", normalize, ("idw",)),
                                 ("backend", backend, ("heat",)),
                                 ("tol", tol, ("bbw", "bbw-joints"))):

@@ -392,12 +392,6 @@ def _bone_labels(sk: Skeleton) -> list[str]:
     return [f"bone {i} ({sk.names[i]!r})" for i in range(sk.n_bones)]
 
 
-def _check_skeleton(V: np.ndarray, sk: Skeleton) -> None:
-    if V.shape[1] != sk.dim:
-        raise ValueError(f"V must have shape ({V.shape[0]}, {sk.dim}) to match the "
-                         f"{sk.dim}D skeleton, got {V.shape}")
-
-
 def bone_heat(V, F, sk: Skeleton, *, c: float = 1.0,
               backend: _raycast.RayBackend = "auto", on_empty: OnEmpty = "raise",
               return_report: bool = False):
@@ -426,8 +420,7 @@ def bone_heat(V, F, sk: Skeleton, *, c: float = 1.0,
     report : HeatReport
         Only with ``return_report=True``.
     """
-    V = _checks.vertices(V)
-    _check_skeleton(V, sk)
+    V = _checks.skeleton(sk, V)
     solver = BoneHeatSolver(V, F, backend=backend)
     W, report = solver.solve(sk.A, sk.B, c=c, labels=_bone_labels(sk), on_empty=on_empty)
     W = _normalise_rows(W)
@@ -449,8 +442,7 @@ def heat_joint_weights(V, F, sk: Skeleton, *, c: float = 1.0,
     report : HeatReport
         Only with ``return_report=True``.
     """
-    V = _checks.vertices(V)
-    _check_skeleton(V, sk)
+    V = _checks.skeleton(sk, V)
     solver = BoneHeatSolver(V, F, backend=backend)
     J, report = solver.solve(sk.C, None, c=c,
                              labels=[f"joint {k}" for k in range(sk.n_joints)],

@@ -124,7 +124,7 @@ def _as_filter(f: Any) -> SplineFilter:
     return f if isinstance(f, SplineFilter) else SplineFilter(f)
 
 
-def spline_filter(E, filters, bones: Sequence[int | str] | None = None, *,
+def spline_filter(E, filters, *, bones: Sequence[int | str] | None = None,
                   sk: Skeleton | None = None):
     """Filter endpoint weights per bone: ``E[:, i] <- f_i(E[:, i])``.
 
@@ -145,6 +145,8 @@ def spline_filter(E, filters, bones: Sequence[int | str] | None = None, *,
     (n, b) float64
         A new array (sparse in, sparse out); unfiltered columns are copied.
     """
+    if sk is not None:
+        _checks.skeleton(sk)
     sparse = sp.issparse(E)
     if sparse:
         X = sp.csc_array(E, dtype=np.float64, copy=True)
