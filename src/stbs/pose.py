@@ -142,7 +142,7 @@ class Pose:
             return np.tile(np.eye(2), (sk.n_bones, 1, 1))
         return tf.axis_angle_to_matrix(sk.axes, ang)
 
-    def is_rest(self, tol: float = 0.0) -> bool:
+    def is_rest(self, *, tol: float = 0.0) -> bool:
         """True if this is the rest pose (to ``tol``)."""
         sk = self.skeleton
         return bool(np.abs(self.rotations - np.eye(sk.dim)).max() <= tol

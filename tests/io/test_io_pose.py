@@ -39,7 +39,7 @@ def rot(axis, deg):
 
 # ---------------------------------------------------------------- forward kinematics form
 def test_empty_object_is_rest_pose(sk3):
-    assert read_pose({}, sk3).is_rest(1e-15)
+    assert read_pose({}, sk3).is_rest(tol=1e-15)
 
 
 def test_rotate_by_index_string_int_and_name(sk3):

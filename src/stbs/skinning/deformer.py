@@ -153,7 +153,7 @@ class Deformer:
         return out[:, : self.dim], Nout[:, : self.dim]
 
 
-def deform(V, sk: Skeleton, pose: Pose, W, E=None, method: Method = "stbs-dqs", *,
+def deform(V, sk: Skeleton, pose: Pose, W, E=None, *, method: Method = "stbs-dqs",
            dtype=None, max_influences: int | None = None) -> np.ndarray:
     """Deform ``V`` by ``pose`` with one of the four skinning methods (DESIGN §3).
 
