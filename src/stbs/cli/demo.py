@@ -21,11 +21,12 @@ the paper's comparisons headless (matplotlib) into the output folder:
   fig12  a picture made in code, posed by dragging joints (textured)
 Writes PNG panels, GIF animations, index.html (open it in a browser), summary.txt
 and summary.json, and prints the table of numbers. Only the output folder is
-written. About a minute (--quick: a few seconds)."""
+written. About a minute (--quick: a few seconds). Needs the demo extra
+(pip install 'stbs-skinning[demo]': matplotlib and Pillow)."""
 EPILOG = f"""examples:
   {EXAMPLE}
   stbs demo --quick --only fig2,fig5 --out /tmp/demo
-  stbs demo --data          # add libigl's arm from ../shared/data to fig5"""
+  stbs demo --only fig5 --data ~/libigl-tutorial-data   # add libigl's arm scan to fig5"""
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -35,19 +36,33 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="coarser meshes and fewer animation frames")
     p.add_argument("--only", metavar="FIGS", default=None,
                    help="comma-separated figures, e.g. fig2,fig5 (default: all)")
-    p.add_argument("--data", action="store_true",
-                   help="add libigl's arm rig (../shared/data) to fig5")
+    p.add_argument("--data", metavar="DIR", default=None,
+                   help="add libigl's arm scan, with its own weights, to fig5: DIR holds "
+                        "libigl's tutorial data files arm.obj, arm.tgf and arm-weights.dmat, "
+                        "or a libigl-tutorial-data folder with them")
+
+
+def requires(args: argparse.Namespace) -> list[str]:
+    """The optional modules this run needs: matplotlib and Pillow (the demo extra)."""
+    from ..demo.run import REQUIRES
+
+    return list(REQUIRES)
 
 
 def run(args: argparse.Namespace) -> int:
     from ..demo import run_demo
-    from ..demo.run import parse_only
+    from ..demo.run import libigl_arm_folder, parse_only
     from ._errors import CommandError
 
     try:
         only = parse_only(args.only)
     except ValueError as exc:
         raise CommandError(str(exc)) from None
+    if args.data is not None:
+        try:
+            libigl_arm_folder(args.data)
+        except FileNotFoundError as exc:
+            raise CommandError(f"--data {exc.filename}: {exc.strerror}") from None
     try:
         run_demo(args.out, quick=args.quick, only=only, data=args.data)
     except (NotADirectoryError, PermissionError, FileNotFoundError) as exc:

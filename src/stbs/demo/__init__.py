@@ -7,6 +7,7 @@ build the shapes; :mod:`stbs.demo.render` draws headless PNG/GIF with matplotlib
 :mod:`stbs.demo.gallery` writes ``index.html``.
 """
 
+from ..shapes import bar, box, cigar
 from .figures import (
     FIGURES,
     Figure,
@@ -15,7 +16,6 @@ from .figures import (
     fig3_box_twist,
 )
 from .run import FIGURE_KEYS, DemoResult, format_summary, run_demo
-from .shapes import bar, box, cigar
 
 __all__ = ["run_demo", "DemoResult", "format_summary", "Figure", "FIGURES", "FIGURE_KEYS",
            "fig2_cigar_stretch", "fig3_box_twist", "fig3_bar_bend_twist", "cigar", "box", "bar"]

@@ -32,12 +32,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .. import shapes
 from .. import transforms as tf
 from ..pose import Pose, forward_kinematics
 from ..skeleton import Skeleton
 from ..skinning import METHODS, deform
 from ..weights.endpoint import projection
-from . import shapes
 from .render import Camera, Panel, PlotPanel
 
 __all__ = ["Figure", "fig2_cigar_stretch", "fig3_box_twist", "fig3_bar_bend_twist",

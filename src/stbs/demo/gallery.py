@@ -16,7 +16,7 @@ from pathlib import Path, PurePosixPath
 from typing import Any
 from urllib.parse import quote
 
-from ..io._atomic import atomic_open
+from ..io import atomic_open
 
 __all__ = ["GalleryEntry", "write_gallery"]
 

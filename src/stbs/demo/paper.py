@@ -263,7 +263,7 @@ def fig6_character(quick: bool = False) -> Figure:
     m = models.character(quick=quick)
     V, F, sk = m.V, m.F, m.sk
     W = _heat(V, F, sk)
-    E = endpoint_weights(V, sk, "heat", W=W, F=F)
+    E = endpoint_weights(V, sk, method="heat", W=W, F=F)
     fig = Figure("character", "Fig. 6: bone weights as colours, endpoint weights as heat maps",
                  V, F, sk, W, E)
     fig.key = "fig6"
@@ -330,7 +330,7 @@ def fig7_neck(quick: bool = False, *, sigma: float = 1.6) -> Figure:
     sk = _sub_skeleton(m.sk, keep)
     neck = keep.index(int(m.extra["neck"]))
     head = np.asarray(m.extra["head"], dtype=bool)
-    W = bone_weights(V, sk, "bbw", F=F, tol=1e-8)
+    W = bone_weights(V, sk, method="bbw", F=F, tol=1e-8)
     stretch = np.ones(sk.n_bones)
     stretch[neck] = sigma
     pose = forward_kinematics(sk, stretch=stretch)
@@ -340,7 +340,7 @@ def fig7_neck(quick: bool = False, *, sigma: float = 1.6) -> Figure:
     fig.key = "fig7"
     panels = []
     for method in ("projection", "idw", "heat", "bbw"):
-        E = endpoint_weights(V, sk, method, W=W, F=F)
+        E = endpoint_weights(V, sk, method=method, W=W, F=F)
         U = deform(V, sk, pose, W, E, method="stbs-lbs")
         fig.U[method] = U
         sag = float(np.sqrt(np.mean(np.sum((U[head] - V[head] - delta) ** 2, axis=1))))
@@ -373,7 +373,7 @@ def fig8_box_twist(quick: bool = False, *, degrees: float = 360.0) -> Figure:
     (``degrees`` times the mean endpoint weight there). Heat endpoint weights fall
     short beyond the handles; BBW reach it.
     """
-    from .shapes import box_tets
+    from ..shapes import box_tets
 
     V, T, F = box_tets(h=0.5 if quick else 0.25)
     sk = Skeleton([[1.0, 0.5, 0.5], [3.0, 0.5, 0.5]], [[0, 1]])
@@ -386,7 +386,7 @@ def fig8_box_twist(quick: bool = False, *, degrees: float = 360.0) -> Figure:
     xs = np.unique(np.round(V[:, 0], 9))
     curves, panels = {}, []
     for method in ("heat", "bbw"):
-        E = endpoint_weights(V, sk, method, F=F if method == "heat" else None,
+        E = endpoint_weights(V, sk, method=method, F=F if method == "heat" else None,
                              T=T if method == "bbw" else None)
         U = deform(V, sk, pose, W, E, method="stbs-dqs")
         fig.U[method] = U
@@ -479,8 +479,8 @@ def fig12_picture(quick: bool = False) -> Figure:
     m = models.picture_2d(quick=quick)
     V, F, sk = m.V, m.F, m.sk
     tex, uv = m.extra["texture"], m.extra["uv"]
-    W = bone_weights(V, sk, "bbw", F=F, tol=1e-8)
-    E = endpoint_weights(V, sk, "bbw", W=W, F=F)
+    W = bone_weights(V, sk, method="bbw", F=F, tol=1e-8)
+    E = endpoint_weights(V, sk, method="bbw", W=W, F=F)
     fig = Figure("picture", "Fig. 12: a picture brought to life by dragging joints", V, F, sk,
                  W, E)
     fig.key = "fig12"
@@ -542,18 +542,27 @@ FIGURES = (fig4_leg, fig5_arm, fig6_character, fig7_neck, fig8_box_twist, fig10_
 
 
 # ---------------------------------------------------------------------- Fig. 5, real scan
-def fig5_libigl_arm(quick: bool = False, *, bend: float = 60.0, twist: float = 180.0) -> Figure:
-    """Fig. 5 on real data: libigl's arm rig (``../shared/data``), bent and twisted.
+def fig5_libigl_arm(quick: bool = False, *, folder, bend: float = 60.0,
+                    twist: float = 180.0) -> Figure:
+    """Fig. 5 on real data: libigl's arm rig, bent and twisted.
 
     Its own bone weights (arm-weights.dmat), projection endpoint weights, 60 degrees
     at the elbow and 180 degrees of twist at the wrist for every method (one pose:
     LBS/DQS see the twist through the hand's inherited rotation). Number: the
     wrist cross-section's size relative to rest.
-    """
-    from .. import io
-    from ..io.shared_data import data_dir
 
-    d = data_dir() / "libigl-tutorial-data"
+    Parameters
+    ----------
+    quick : bool
+        Unused (the scan is what it is); for the same call as the other figures.
+    folder : str or os.PathLike, keyword-only
+        The folder holding libigl's ``arm.obj``, ``arm.tgf`` and ``arm-weights.dmat``.
+    """
+    from pathlib import Path
+
+    from .. import io
+
+    d = Path(folder)
     mesh = io.read_mesh(d / "arm.obj")
     V, F = mesh.V, mesh.F
     sk = io.read_skeleton(d / "arm.tgf")

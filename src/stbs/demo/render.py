@@ -35,7 +35,8 @@ from typing import Any, Literal
 import numpy as np
 
 from .. import _checks
-from ..io._atomic import atomic_open, atomic_save
+from ..geometry import face_normals, unique_edges
+from ..io import atomic_open, atomic_save
 
 __all__ = ["Camera", "Panel", "PlotPanel", "render_panels", "render_animation",
            "draw_panels", "METHOD_COLORS", "MATPLOTLIB_MISSING"]
@@ -511,11 +512,6 @@ def _make_view(panels: list, camera: Camera | None) -> _View:
 
 
 # ---------------------------------------------------------------------- geometry
-def _face_normals(P: np.ndarray, F: np.ndarray) -> np.ndarray:
-    a, b, c = P[F[:, 0]], P[F[:, 1]], P[F[:, 2]]
-    return np.cross(b - a, c - a)
-
-
 def _closed_and_consistent(F: np.ndarray, n: int) -> bool:
     """Every edge used exactly once in each direction (a closed, oriented surface)."""
     if not len(F):
@@ -526,12 +522,6 @@ def _closed_and_consistent(F: np.ndarray, n: int) -> bool:
     if np.any(fwd[1:] == fwd[:-1]):
         return False
     return bool(np.array_equal(fwd, np.sort(b * n + a)))
-
-
-def _unique_edges(F: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Undirected edges (e, 2) and how many faces use each."""
-    E = np.sort(np.vstack([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]]), axis=1)
-    return np.unique(E, axis=0, return_counts=True)
 
 
 def _iso_segments(P: np.ndarray, F: np.ndarray, s: np.ndarray,
@@ -689,7 +679,7 @@ def _shade(Pw: np.ndarray, F: np.ndarray, cam: Camera, view: _View, cull: bool |
     """
     right, up, eye = cam.basis()
     n = len(Pw)
-    Nf = _face_normals(Pw, F)
+    Nf = face_normals(Pw, F)
     closed = _closed_and_consistent(F, n)
     if closed:
         a, b, c = Pw[F[:, 0]], Pw[F[:, 1]], Pw[F[:, 2]]
@@ -837,7 +827,7 @@ def _draw_flat(ax, p: Panel, xlim, ylim, shape_px, px: float, mpl, dpi: float) -
                                              edgecolors=[base], linewidths=0.5 * pt,
                                              zorder=1))
         wire = p.wireframe is None or p.wireframe
-    E, count = _unique_edges(F)
+    E, _, count = unique_edges(F)
     if wire:
         ax.add_collection(mpl.LineCollection(xy[E], colors=[(0.1, 0.15, 0.25, 0.28)],
                                              linewidths=0.6 * pt, zorder=1.5))

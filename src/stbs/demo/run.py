@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 import json
 import os
 import sys
@@ -10,10 +11,18 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TextIO
 
+from .._optional import OptionalDependencyError, missing
 from . import figures, paper
 from .figures import Figure
 
-__all__ = ["run_demo", "DemoResult", "format_summary", "FIGURE_KEYS", "parse_only"]
+__all__ = ["run_demo", "DemoResult", "format_summary", "FIGURE_KEYS", "parse_only",
+           "LIBIGL_ARM_FILES", "libigl_arm_folder", "REQUIRES"]
+
+#: The optional modules (import names) the demo's pictures need: the ``demo`` extra.
+REQUIRES = ("matplotlib", "PIL")
+
+#: The files of libigl's tutorial data that ``data=`` adds to Fig. 5 (the arm scan).
+LIBIGL_ARM_FILES = ("arm.obj", "arm.tgf", "arm-weights.dmat")
 
 #: ``stbs demo --only`` keys, in display order, and the functions that make them.
 _MAKERS = {
@@ -80,6 +89,42 @@ def parse_only(only) -> list[str]:
     return keys
 
 
+def libigl_arm_folder(data) -> Path:
+    """The folder holding libigl's arm rig (:data:`LIBIGL_ARM_FILES`) for ``data``.
+
+    Parameters
+    ----------
+    data : str or os.PathLike
+        The folder holding the files, or a folder holding ``libigl-tutorial-data/``
+        with them (a checkout of libigl's tutorial data, or its parent).
+
+    Returns
+    -------
+    Path
+        ``data`` or ``data / "libigl-tutorial-data"``, whichever holds all the files.
+
+    Raises
+    ------
+    FileNotFoundError
+        When neither holds all of them: ``filename`` is the path, ``strerror`` names
+        the files expected and what is missing.
+    """
+    if isinstance(data, bool) or not isinstance(data, (str, os.PathLike)):
+        raise TypeError(f"data must be a folder path, got {data!r}")
+    base = Path(os.fspath(data)).expanduser()
+    for d in (base, base / "libigl-tutorial-data"):
+        if all((d / f).is_file() for f in LIBIGL_ARM_FILES):
+            return d
+    files = ", ".join(LIBIGL_ARM_FILES)
+    if base.is_dir():
+        why = "missing: " + ", ".join(f for f in LIBIGL_ARM_FILES if not (base / f).is_file())
+    else:
+        why = "not a folder" if base.exists() else "no such folder"
+    msg = (f"expected libigl's tutorial data files {files} in this folder or in its "
+           f"libigl-tutorial-data folder ({why})")
+    raise FileNotFoundError(2, msg, str(base))
+
+
 def format_summary(figs) -> str:
     """A plain-text table per figure: one row per method, one column per number."""
     lines = []
@@ -133,7 +178,7 @@ def _check_out(out: Path) -> None:
 
 
 def run_demo(out_dir: str | os.PathLike = "demo-out", quick: bool = False, *,
-             only=None, data: bool = False, stream: TextIO | None = None,
+             only=None, data: str | os.PathLike | None = None, stream: TextIO | None = None,
              progress: TextIO | None = None, quiet: bool = False) -> DemoResult:
     """Run the demo: the paper's figures on shapes built in code, as pictures and numbers.
 
@@ -159,8 +204,10 @@ def run_demo(out_dir: str | os.PathLike = "demo-out", quick: bool = False, *,
         Coarser meshes and fewer animation frames (under a minute).
     only : str or list of str, optional
         Figure keys, e.g. ``"fig2,fig5"``; default all.
-    data : bool
-        Add libigl's arm rig from ``../shared/data`` to Fig. 5 (needs the data).
+    data : str or os.PathLike, optional
+        A folder holding libigl's tutorial data files ``arm.obj``, ``arm.tgf`` and
+        ``arm-weights.dmat`` (or holding ``libigl-tutorial-data/`` with them): adds
+        that arm scan, with its own weights, to Fig. 5.
     stream : text file, optional
         Where the table is printed (default ``sys.stdout``).
     progress : text file, optional
@@ -177,6 +224,11 @@ def run_demo(out_dir: str | os.PathLike = "demo-out", quick: bool = False, *,
     ------
     ValueError
         For an unknown figure key.
+    stbs._optional.OptionalDependencyError
+        When matplotlib or Pillow (the ``demo`` extra) is missing; raised before
+        anything is computed or written.
+    FileNotFoundError
+        When ``data`` does not hold libigl's arm files (before anything is written).
     OSError
         When the output folder cannot be created or written.
     """
@@ -185,24 +237,22 @@ def run_demo(out_dir: str | os.PathLike = "demo-out", quick: bool = False, *,
     from .render import render_animation, render_panels
 
     keys = parse_only(only)
+    advice = missing(REQUIRES, "the demo's pictures")
+    if advice:  # before any work: a missing extra must not cost a figure's computation
+        raise OptionalDependencyError(advice)
+    arm_dir = None if data is None else libigl_arm_folder(data)
     out = Path(os.fspath(out_dir))
     _check_out(out)
-    if data:
-        from ..io.shared_data import data_dir
-
-        arm = data_dir() / "libigl-tutorial-data" / "arm.obj"
-        if not arm.is_file():
-            raise FileNotFoundError(2, "--data needs libigl's arm rig in ../shared/data",
-                                    str(arm))
     res = DemoResult()
-    makers = [(k, f) for k in keys for f in _MAKERS[k]]
-    if data and "fig5" in keys:
-        makers.append(("fig5", paper.fig5_libigl_arm))
+    makers = [(k, f.__name__, f) for k in keys for f in _MAKERS[k]]
+    if arm_dir is not None and "fig5" in keys:
+        makers.append(("fig5", "fig5_libigl_arm",
+                       functools.partial(paper.fig5_libigl_arm, folder=arm_dir)))
     bar = _Progress(len(makers), None if quiet else (sys.stderr if progress is None
                                                      else progress))
     entries = []
-    for key, make in makers:
-        bar.step(f"{key}: {make.__name__}")
+    for key, label, make in makers:
+        bar.step(f"{key}: {label}")
         t = time.perf_counter()
         fig = make(quick)
         images = []
