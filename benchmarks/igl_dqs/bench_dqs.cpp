@@ -1,8 +1,8 @@
 // Time libigl's own C++ dual-quaternion skinning, igl::dqs, on a rig written by
-// `stbs bench` (src/stbs/bench.py). This file is ours; libigl and Eigen are
+// benchmarks/skinning_vs_igl.py. This file is ours; libigl and Eigen are
 // header-only and are found at build time, never copied into this repository.
 //
-// Build (bench.py does this, caching the binary under ~/.cache/stbs/igl_dqs/):
+// Build (skinning_vs_igl.py does this, caching the binary under ~/.cache/stbs/igl_dqs/):
 //   g++ -O3 -march=native -DNDEBUG -std=c++17 -pthread \
 //       -I$EIGEN_INCLUDE -I$LIBIGL_INCLUDE bench_dqs.cpp -o bench_dqs
 //

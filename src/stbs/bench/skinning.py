@@ -1,4 +1,4 @@
-"""Throughput of the four skinning methods, and of peers, on this machine (``stbs bench``).
+"""Throughput of the four skinning methods beside NumPy and SciPy peers (``stbs bench``).
 
 For each vertex count and storage dtype the benchmark builds a random rig (a
 ``bones``-bone forest, vertices scattered around it, ``influences`` non-zero bone
@@ -8,12 +8,11 @@ frame, ``Deformer(...)(pose, out=buf)``, per method, and in the same run:
 
 - ``numpy-lbs``: LBS in plain NumPy over the top-k weights (per-vertex blended
   3x4 matrices by ``einsum``, then applied);
-- ``scipy-lbs``: LBS as one sparse product ``L @ T`` (libigl's LBS matrix, sparse);
-- ``igl-lbs``: libigl's ``igl.lbs_matrix(V, W)`` (dense, precomputed) times the
-  stacked transforms, ``M @ T`` (only the product is per frame);
-- ``igl-dqs``: libigl's C++ ``igl::dqs``, through our harness
-  ``benchmarks/igl_dqs/bench_dqs.cpp`` compiled here against header-only libigl
-  and Eigen (rigid DQS only: libigl has no stretch or twist).
+- ``scipy-lbs``: LBS as one sparse product ``L @ T`` (the LBS matrix of libigl's
+  ``lbs_matrix``, sparse).
+
+More peers can be timed in the same run through ``run_bench(extra_peers=...)``:
+``benchmarks/skinning_vs_igl.py`` in the source tree adds libigl's.
 
 Times are nanoseconds per vertex, the **median** of ``repeats`` frames after two
 warm-up frames (so JIT compilation is never timed); the minimum is kept in the
@@ -23,55 +22,59 @@ run, and the ratio of the measured time to that bound. Rows for our methods add
 the memory held by the ``Deformer`` against the input and the peak memory
 allocated while building it and per frame (``tracemalloc``).
 
-Docs: ``docs/benchmarks.md``. Timing lives here, never in the tests.
+Nothing here touches the network or starts a process. Docs: ``docs/benchmarks.md``.
 """
 
 from __future__ import annotations
 
 import argparse
-import hashlib
-import json
 import math
 import os
 import platform
 import re
-import shutil
 import statistics
-import subprocess
 import sys
-import tarfile
-import tempfile
 import time
 import tracemalloc
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
 import scipy.sparse as sp
 
-from . import transforms as tf
-from .pose import Pose
-from .skeleton import Skeleton
-from .skinning import METHODS, Deformer
+from .. import transforms as tf
+from ..pose import Pose
+from ..skeleton import Skeleton
+from ..skinning import METHODS, Deformer
+from .report import (
+    check_json_path,
+    cpu_model,
+    load_average,
+    machine_lines,
+    peak_rss_bytes,
+    platform_name,
+    positive_int,
+    quiet,
+    write_json,
+)
 
-__all__ = ["PEERS", "BenchRig", "make_rig", "make_pose", "lbs_affines", "numpy_lbs",
-           "lbs_matrix_sparse", "stacked_transforms", "measure_bandwidth", "machine_info",
-           "find_igl_dqs_headers", "build_igl_dqs", "igl_dqs_deform", "run_bench",
-           "check_targets", "format_table", "add_arguments", "run", "main_bench"]
+__all__ = ["PEERS", "DTYPES", "DEFAULT_SIZES", "WARMUP", "Peer", "BenchRig", "make_rig",
+           "make_pose", "lbs_affines", "numpy_lbs", "lbs_matrix_sparse", "stacked_transforms",
+           "measure_bandwidth", "machine_info", "time_frames", "auto_repeats", "csr_bytes",
+           "make_row", "run_bench", "format_table", "add_arguments", "collect", "print_report",
+           "run", "main"]
 
-PEERS: tuple[str, ...] = ("numpy-lbs", "scipy-lbs", "igl-lbs", "igl-dqs")
+#: The peers ``stbs bench`` times beside our methods.
+PEERS: tuple[str, ...] = ("numpy-lbs", "scipy-lbs")
 DTYPES: tuple[str, ...] = ("float64", "float32")
 DEFAULT_SIZES: tuple[int, ...] = (10_000, 100_000, 1_000_000)
+#: Untimed frames before the timed ones.
 WARMUP = 2
-# The issue's targets, checked at this size and dtype.
-TARGET_SIZE, TARGET_DTYPE, TARGET_LBS_RATIO = 1_000_000, "float64", 1.5
 
 Log = Callable[[str], None]
-
-
-def _quiet(msg: str) -> None:
-    pass
+#: An extra peer for :func:`run_bench`: ``peer(rig, V, repeats, bandwidth, log)`` returns
+#: one row (:func:`make_row`) for the rig's vertices stored as ``V`` (its dtype is the row's).
+Peer = Callable[["BenchRig", np.ndarray, int, dict, Log], dict]
 
 
 # --------------------------------------------------------------------------- rig and pose
@@ -229,7 +232,7 @@ def numpy_lbs(V: np.ndarray, idx: np.ndarray, w: np.ndarray, A: np.ndarray) -> n
 
 def lbs_matrix_sparse(V: np.ndarray, idx: np.ndarray, w: np.ndarray,
                       b: int | None = None) -> sp.csr_array:
-    """(n, 4b) CSR LBS matrix, columns ordered as ``igl.lbs_matrix``'s.
+    """(n, 4b) CSR LBS matrix, columns ordered as libigl's ``lbs_matrix``.
 
     Row v holds ``w_vi * [x, y, z, 1]`` in columns ``4i .. 4i+3`` for each bone i of v,
     so that ``L @ stacked_transforms(A)`` is LBS. ``b`` defaults to ``idx.max() + 1``.
@@ -295,327 +298,32 @@ def measure_bandwidth(nbytes: int = 128 * 2**20, repeats: int = 5) -> dict:
 
 
 # --------------------------------------------------------------------------- machine
-def _cpu_model() -> str:
-    try:
-        with open("/proc/cpuinfo", encoding="utf-8") as f:
-            for line in f:
-                if line.startswith("model name"):
-                    return line.split(":", 1)[1].strip()
-    except OSError:
-        pass
-    return platform.processor() or platform.machine()
-
-
 def machine_info() -> dict:
     """CPU model, core count, thread counts and library versions."""
     import numba as nb
 
-    info = {"cpu": _cpu_model(), "cpus": os.cpu_count(), "numba_threads": nb.get_num_threads(),
+    return {"cpu": cpu_model(), "cpus": os.cpu_count(), "numba_threads": nb.get_num_threads(),
             "python": platform.python_version(), "numpy": np.__version__,
-            "numba": nb.__version__, "platform": platform.platform(),
-            "load_average": _load_average()}
-    try:
-        from importlib.metadata import version
-
-        info["libigl"] = version("libigl")
-    except Exception:  # noqa: BLE001 - absent or broken metadata: just omit it
-        pass
-    return info
-
-
-def _load_average() -> list[float] | None:
-    """1, 5 and 15 minute load averages: other work on the CPUs inflates every figure."""
-    try:
-        return [round(x, 2) for x in os.getloadavg()]
-    except (AttributeError, OSError):
-        return None
-
-
-def _peak_rss_bytes() -> int | None:
-    try:
-        import resource
-    except ImportError:  # not on Windows
-        return None
-    r = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
-    return int(r) if sys.platform == "darwin" else int(r) * 1024
-
-
-# --------------------------------------------------------------------------- libigl C++ DQS
-def _cache_dir() -> Path:
-    if os.environ.get("STBS_CACHE"):
-        return Path(os.environ["STBS_CACHE"])
-    base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
-    return Path(base) / "stbs"
-
-
-def _harness_source() -> Path:
-    env = os.environ.get("STBS_IGL_DQS_SRC")
-    if env:
-        return Path(env)
-    return Path(__file__).resolve().parents[2] / "benchmarks" / "igl_dqs" / "bench_dqs.cpp"
-
-
-def _libigl_version() -> str | None:
-    try:
-        from importlib.metadata import version
-
-        return version("libigl")
-    except Exception:  # noqa: BLE001
-        return None
-
-
-def _safe_members(tar: tarfile.TarFile, prefix: str) -> list[tarfile.TarInfo]:
-    out = []
-    for m in tar.getmembers():
-        if not m.name.startswith(prefix) or not (m.isfile() or m.isdir()):
-            continue
-        if m.name.startswith("/") or ".." in Path(m.name).parts:
-            continue
-        out.append(m)
-    return out
-
-
-def _headers_from_sdist(cache: Path, log: Log) -> tuple[Path | None, Path | None, str]:
-    """libigl (and Eigen) headers from the installed libigl version's sdist on PyPI.
-
-    Downloaded once with pip; the outcome is remembered in ``cache`` so a sdist
-    without headers is not fetched again. Returns (libigl include, Eigen include, note).
-    """
-    ver = _libigl_version()
-    if ver is None:
-        return None, None, ("libigl is not installed (pip install 'stbs-skinning[bench]'), "
-                            "so there is no libigl sdist version to look in")
-    marker = cache / f"libigl-{ver}-sdist.json"
-    if marker.exists():
-        info = json.loads(marker.read_text())
-        igl = Path(info["libigl"]) if info.get("libigl") else None
-        eig = Path(info["eigen"]) if info.get("eigen") else None
-        if (igl is None or (igl / "igl" / "dqs.h").exists()) and (
-                eig is None or (eig / "Eigen" / "Core").exists()):
-            return igl, eig, info["note"]
-    log(f"looking for libigl's C++ headers in the libigl {ver} sdist on PyPI "
-        f"(once; result kept in {marker})")
-    cache.mkdir(parents=True, exist_ok=True)
-    igl = eig = None
-    with tempfile.TemporaryDirectory(dir=cache) as tmp:
-        cmd = [sys.executable, "-m", "pip", "download", "--disable-pip-version-check", "-q",
-               "--no-deps", "--no-binary", "libigl", f"libigl=={ver}", "-d", tmp]
-        try:
-            proc = subprocess.run(cmd, capture_output=True, text=True, timeout=900)
-        except (OSError, subprocess.TimeoutExpired) as exc:
-            return None, None, f"pip download of the libigl {ver} sdist failed: {exc}"
-        tars = sorted(Path(tmp).glob("libigl-*.tar.gz"))
-        if proc.returncode != 0 or not tars:
-            last = (proc.stderr.strip().splitlines() or ["no sdist"])[-1]
-            return None, None, f"pip download of the libigl {ver} sdist failed: {last}"
-        with tarfile.open(tars[0]) as tar:
-            names = tar.getnames()
-            dqs = [s for s in names if s.endswith("include/igl/dqs.h")]
-            core = [s for s in names if s.endswith("Eigen/Core")]
-            dest = cache / f"libigl-{ver}-sdist"
-            for found, depth, kind in ((dqs, len("igl/dqs.h"), "libigl"),
-                                       (core, len("Eigen/Core"), "eigen")):
-                if not found:
-                    continue
-                prefix = found[0][: -depth]
-                members = _safe_members(tar, prefix)
-                if sys.version_info >= (3, 12) or hasattr(tarfile, "data_filter"):
-                    tar.extractall(dest, members=members, filter="data")
-                else:  # pragma: no cover - old Pythons; members were vetted above
-                    tar.extractall(dest, members=members)  # noqa: S202
-                if kind == "libigl":
-                    igl = dest / prefix
-                else:
-                    eig = dest / prefix
-    parts = []
-    parts.append(f"libigl headers from the libigl {ver} sdist: {igl}" if igl else
-                 f"the libigl {ver} sdist on PyPI has no include/igl/dqs.h (it holds the "
-                 "Python binding sources; its CMake build fetches libigl's C++ from git)")
-    if eig:
-        parts.append(f"Eigen from the sdist: {eig}")
-    note = "; ".join(parts)
-    _write_atomic(marker, json.dumps({"libigl": str(igl) if igl else None,
-                                      "eigen": str(eig) if eig else None, "note": note}))
-    return igl, eig, note
-
-
-def find_igl_dqs_headers(*, download: bool = True, log: Log = _quiet) -> dict:
-    """Locate Eigen's and libigl's include folders for the C++ DQS harness.
-
-    Order: ``EIGEN_INCLUDE`` / ``LIBIGL_INCLUDE``; common system folders
-    (``/usr/include/eigen3`` from Debian's ``libeigen3-dev``, ...); an unpacked copy
-    under the cache (``~/.cache/stbs/libigl*/include``); last, with ``download``,
-    the installed libigl version's sdist from PyPI (see :func:`_headers_from_sdist`).
-
-    Returns
-    -------
-    dict with ``eigen`` and ``libigl`` (str or None) and ``notes`` (list of str).
-    """
-    cache = _cache_dir()
-    notes: list[str] = []
-
-    def first(env: str, cands: Sequence[Path], probe: str) -> Path | None:
-        if os.environ.get(env):
-            p = Path(os.environ[env])
-            if (p / probe).exists():
-                return p
-            notes.append(f"{env}={p} has no {probe}")
-        return next((c for c in cands if (c / probe).exists()), None)
-
-    prefixes = [Path(p) for p in (os.environ.get("CONDA_PREFIX"), "/usr/local", "/usr",
-                                  "/opt/homebrew") if p]
-    # a checkout or archive at cache/libigl*/include, or an unpacked sdist one level down
-    cached = sorted([*cache.glob("libigl*/include"), *cache.glob("libigl*/*/include")],
-                    key=lambda p: p.stat().st_mtime, reverse=True)
-    eigen = first("EIGEN_INCLUDE", [p / "include" / "eigen3" for p in prefixes]
-                  + sorted(cache.glob("eigen*")), "Eigen/Core")
-    libigl = first("LIBIGL_INCLUDE", [p / "include" for p in prefixes] + cached, "igl/dqs.h")
-    if (libigl is None or eigen is None) and download:
-        igl2, eig2, note = _headers_from_sdist(cache, log)
-        notes.append(note)
-        libigl = libigl or igl2
-        eigen = eigen or eig2
-    return {"eigen": str(eigen) if eigen else None, "libigl": str(libigl) if libigl else None,
-            "notes": notes}
-
-
-def _compiler() -> str | None:
-    cxx = os.environ.get("CXX")
-    if cxx:
-        return shutil.which(cxx)
-    return next((p for p in map(shutil.which, ("g++", "c++", "clang++")) if p), None)
-
-
-def build_igl_dqs(*, download: bool = True, log: Log = _quiet) -> tuple[Path | None, str]:
-    """Compile (once, cached by source, flags and compiler) the libigl C++ DQS harness.
-
-    Returns
-    -------
-    (path to the executable, what it was built from) or (None, why it could not be built).
-    """
-    src = _harness_source()
-    if not src.exists():
-        return None, (f"the harness source {src} is missing (it ships with the source "
-                      "tree, not the wheel; run from a checkout or set STBS_IGL_DQS_SRC)")
-    cxx = _compiler()
-    if cxx is None:
-        return None, "no C++ compiler (g++, c++ or clang++; or set CXX)"
-    found = find_igl_dqs_headers(download=download, log=log)
-    missing = [name for name, key in (("Eigen", "eigen"), ("libigl", "libigl"))
-               if not found[key]]
-    if missing:
-        hint = ("install Eigen (Debian: apt-get install libeigen3-dev) or set EIGEN_INCLUDE; "
-                if "Eigen" in missing else "")
-        if "libigl" in missing:
-            hint += ("set LIBIGL_INCLUDE to the include/ folder of a libigl checkout "
-                     "(header-only; https://github.com/libigl/libigl)")
-        why = "; ".join(found["notes"] + [hint.rstrip("; ")])
-        return None, f"no {' or '.join(missing)} headers: {why}"
-    flags = ["-O3", "-march=native", "-DNDEBUG", "-std=c++17", "-pthread"]
-    cmd = [cxx, *flags, f"-I{found['eigen']}", f"-I{found['libigl']}", str(src)]
-    try:
-        ver = subprocess.run([cxx, "--version"], capture_output=True, text=True,
-                             timeout=60).stdout
-    except (OSError, subprocess.TimeoutExpired):
-        ver = ""
-    h = hashlib.sha256()
-    for part in (src.read_bytes(), " ".join(cmd).encode(), ver.encode()):
-        h.update(part)
-    for inc in (Path(found["libigl"]) / "igl" / "dqs.cpp", Path(found["libigl"]) / "igl" /
-                "parallel_for.h"):
-        if inc.exists():
-            h.update(inc.read_bytes())
-    out_dir = _cache_dir() / "igl_dqs" / h.hexdigest()[:16]
-    exe = out_dir / "bench_dqs"
-    built = (f"{_dqs_variant(Path(found['libigl']))}; libigl headers {found['libigl']}, "
-             f"Eigen {found['eigen']}; {Path(cxx).name} {' '.join(flags)}")
-    if exe.exists():
-        return exe, built
-    out_dir.mkdir(parents=True, exist_ok=True)
-    log(f"compiling the libigl C++ DQS harness: {' '.join(cmd)}")
-    tmp = out_dir / f".bench_dqs.{os.getpid()}"
-    try:
-        proc = subprocess.run([*cmd, "-o", str(tmp)], capture_output=True, text=True,
-                              timeout=600)
-    except (OSError, subprocess.TimeoutExpired) as exc:
-        return None, f"compiling {src.name} failed: {exc}"
-    if proc.returncode != 0:
-        err = [s for s in proc.stderr.splitlines() if "error" in s] or proc.stderr.splitlines()
-        tmp.unlink(missing_ok=True)
-        return None, f"compiling {src.name} failed: {(err or ['?'])[0].strip()}"
-    os.replace(tmp, exe)
-    (out_dir / "command.txt").write_text(" ".join(cmd) + "\n" + ver)
-    return exe, built
-
-
-def _dqs_variant(libigl_include: Path) -> str:
-    """Which igl::dqs these headers hold. Since May 2025 (libigl #2390) it flips each
-    bone's quaternion by the sign of its dot product with the running sum, a chain
-    of dependent dot products per vertex; before, it summed them unflipped."""
-    try:
-        text = (libigl_include / "igl" / "dqs.cpp").read_text(errors="replace")
-    except OSError:
-        return "igl::dqs (dqs.cpp not found)"
-    if re.search(r"\.dot\(\s*vQ\[", text):
-        return "igl::dqs with the per-bone hemisphere test (libigl from May 2025)"
-    return "igl::dqs without a hemisphere test (libigl before May 2025)"
-
-
-def _write_dqs_rig(path: Path, V: np.ndarray, idx: np.ndarray, w: np.ndarray,
-                   pose: Pose) -> None:
-    """The harness input (format in bench_dqs.cpp): rigid part of ``pose`` as (Q, T)."""
-    n, k = idx.shape
-    R = pose.rotations
-    Q = tf.matrix_to_quat(R)                                  # (w, x, y, z)
-    T = pose.origins - np.einsum("bij,bj->bi", R, pose.skeleton.A)   # x -> R x + T
-    with open(path, "wb") as f:
-        f.write(b"STBSDQS1")
-        f.write(np.array([n, pose.skeleton.n_bones, k], dtype="<i8").tobytes())
-        for X, dt in ((V, "<f8"), (idx, "<i4"), (w, "<f8"), (Q, "<f8"), (T, "<f8")):
-            f.write(np.ascontiguousarray(X, dtype=dt).tobytes())
-
-
-def igl_dqs_deform(exe: Path, V: np.ndarray, idx: np.ndarray, w: np.ndarray, pose: Pose, *,
-                   repeats: int = 1, single: bool = False,
-                   want_output: bool = False) -> tuple[dict, np.ndarray | None]:
-    """Run the compiled harness on this rig: libigl's ``igl::dqs`` with the rigid part
-    (``R_i``, ``a'_i - R_i a_i``) of each bone; stretch and twist are not libigl's.
-
-    Returns
-    -------
-    (the harness's JSON report, U (n, 3) float64 or None)
-    """
-    with tempfile.TemporaryDirectory() as tmp:
-        rig = Path(tmp) / "rig.bin"
-        _write_dqs_rig(rig, V, idx, w, pose)
-        cmd = [str(exe), str(rig), "--repeats", str(int(repeats))]
-        if single:
-            cmd.append("--float")
-        if want_output:
-            cmd += ["--out", str(Path(tmp) / "U.bin")]
-        proc = subprocess.run(cmd, capture_output=True, text=True, timeout=3600)
-        if proc.returncode != 0:
-            raise RuntimeError(f"{exe.name} failed: {proc.stderr.strip()}")
-        report = json.loads(proc.stdout.strip().splitlines()[-1])
-        U = (np.fromfile(Path(tmp) / "U.bin", dtype="<f8").reshape(-1, 3)
-             if want_output else None)
-    return report, U
+            "numba": nb.__version__, "platform": platform_name(),
+            "load_average": load_average()}
 
 
 # --------------------------------------------------------------------------- timing
-def _time_frames(fn: Callable[[], object], repeats: int) -> tuple[float, float]:
-    """(median, min) seconds per call over ``repeats`` calls after WARMUP calls."""
+def time_frames(fn: Callable[[], object], repeats: int) -> tuple[float, float]:
+    """(median, min) seconds per call of ``fn`` over ``repeats`` calls after
+    :data:`WARMUP` untimed calls."""
     for _ in range(WARMUP):
         fn()
     ts = []
-    for _ in range(repeats):
+    for _ in range(int(repeats)):
         t0 = time.perf_counter_ns()
         fn()
         ts.append(time.perf_counter_ns() - t0)
     return statistics.median(ts) * 1e-9, min(ts) * 1e-9
 
 
-def _auto_repeats(n: int) -> int:
+def auto_repeats(n: int) -> int:
+    """Timed frames for ``n`` vertices when none are given: 5e7 / n, within 10..300."""
     return int(min(300, max(10, 5e7 // max(n, 1))))
 
 
@@ -632,23 +340,51 @@ def _traced_peak(fn: Callable[[], object]) -> tuple[object, int, float]:
     return res, int(peak), dt
 
 
-def _csr_bytes(X: sp.csr_array) -> int:
+def csr_bytes(X: sp.csr_array) -> int:
+    """Bytes held by a CSR matrix's data, indices and row pointers."""
     return int(X.data.nbytes + X.indices.nbytes + X.indptr.nbytes)
 
 
-def _row(size, dtype, method, kind, bw, *, med=None, mn=None, repeats=None, threads=None,
-         bytes_per_vertex=None, note="", reason="") -> dict:
+def make_row(size: int, dtype: str, method: str, kind: str, bandwidth: dict, *,
+             med: float | None = None, mn: float | None = None, repeats: int | None = None,
+             threads=None, bytes_per_vertex: float | None = None, note: str = "",
+             reason: str = "") -> dict:
+    """One row of the report.
+
+    Parameters
+    ----------
+    size : int
+        Vertices.
+    dtype : str
+        Storage dtype.
+    method : str
+        One of ours, or a peer's name.
+    kind : {"stbs", "peer"}
+    bandwidth : dict
+        From :func:`measure_bandwidth` (its ``gbs`` gives the bound).
+    med, mn : float, optional
+        Median and minimum seconds per frame (from :func:`time_frames`).
+    repeats : int, optional
+        Timed frames.
+    threads : int or str, optional
+    bytes_per_vertex : float, optional
+        What the method must move per vertex and frame.
+    note : str
+        One phrase for the table.
+    reason : str
+        Non-empty: the row was skipped, and why (one line).
+    """
     row = {"size": int(size), "dtype": dtype, "method": method, "kind": kind,
            "status": "skipped" if reason else "ok", "reason": reason, "repeats": repeats,
            "ns_per_vertex": None, "min_ns_per_vertex": None, "threads": threads,
-           "bytes_per_vertex": bytes_per_vertex, "bandwidth_gbs": bw["gbs"],
+           "bytes_per_vertex": bytes_per_vertex, "bandwidth_gbs": bandwidth["gbs"],
            "bound_ns_per_vertex": None, "ratio_to_bound": None, "stat": "median",
            "note": note}
     if med is not None:
         row["ns_per_vertex"] = med * 1e9 / size
         row["min_ns_per_vertex"] = mn * 1e9 / size
     if bytes_per_vertex is not None:
-        row["bound_ns_per_vertex"] = bytes_per_vertex / bw["gbs"]   # B / (GB/s) = ns
+        row["bound_ns_per_vertex"] = bytes_per_vertex / bandwidth["gbs"]   # B / (GB/s) = ns
         if row["ns_per_vertex"] is not None:
             row["ratio_to_bound"] = row["ns_per_vertex"] / row["bound_ns_per_vertex"]
     return row
@@ -661,7 +397,7 @@ def _dtype_name(d) -> str:
         return str(d)
 
 
-def _check_choices(sizes, bones, influences, dtypes, repeats) -> tuple:
+def _check_choices(sizes, bones, influences, dtypes, repeats, methods) -> tuple:
     sizes = tuple(int(s) for s in sizes)
     if not sizes or min(sizes) < 1:
         raise ValueError(f"sizes must be positive vertex counts, got {list(sizes)}")
@@ -675,13 +411,16 @@ def _check_choices(sizes, bones, influences, dtypes, repeats) -> tuple:
         raise ValueError(f"dtypes must be among {list(DTYPES)}, got {list(dtypes)}")
     if repeats is not None and int(repeats) < 1:
         raise ValueError(f"repeats must be >= 1, got {repeats}")
+    bad = [m for m in methods if m not in METHODS]
+    if bad:
+        raise ValueError(f"methods must be among {list(METHODS)}, got {bad}")
     return sizes, int(bones), int(influences), dtypes
 
 
 def run_bench(sizes: Sequence[int] = DEFAULT_SIZES, bones: int = 20, influences: int = 4,
               dtypes: Sequence[str] = DTYPES, repeats: int | None = None, peers: bool = True,
               seed: int = 0, *, methods: Sequence[str] = METHODS, bandwidth: dict | None = None,
-              download: bool = True, log: Log = _quiet) -> list[dict]:
+              extra_peers: Sequence[Peer] = (), log: Log = quiet) -> list[dict]:
     """Time every method (and peers) per vertex count and dtype.
 
     Parameters
@@ -693,54 +432,45 @@ def run_bench(sizes: Sequence[int] = DEFAULT_SIZES, bones: int = 20, influences:
     dtypes : sequence of {"float64", "float32"}
         Storage dtypes (our kernels compute in float64 either way).
     repeats : int, optional
-        Timed frames per row after 2 warm-up frames; default 10..300 by size
-        (5e7 / n, clamped).
+        Timed frames per row after 2 warm-up frames; default :func:`auto_repeats`.
     peers : bool
-        Also time numpy-lbs, scipy-lbs and, when available, igl-lbs and igl-dqs.
+        Also time the NumPy and SciPy peers (:data:`PEERS`).
     seed : int
         Rig and pose seed.
     methods : sequence of str
         Subset of ``METHODS``.
     bandwidth : dict, optional
         From :func:`measure_bandwidth`; measured here when omitted.
-    download : bool
-        Allow fetching the libigl sdist from PyPI to look for C++ headers (once).
+    extra_peers : sequence of Peer
+        More peers, each called once per (size, dtype) after the others (see :data:`Peer`).
     log : callable
         Progress messages.
 
     Returns
     -------
-    list of dict, one per (size, dtype, method or peer). Keys: ``size``, ``dtype``,
-    ``method``, ``kind`` ("stbs" or "peer"), ``status`` ("ok" or "skipped") and
-    ``reason``, ``ns_per_vertex`` (median) and ``min_ns_per_vertex``, ``repeats``,
-    ``threads``, ``bytes_per_vertex``, ``bandwidth_gbs``, ``bound_ns_per_vertex``,
-    ``ratio_to_bound``, ``note``; for our methods also ``input_bytes``,
-    ``deformer_nbytes``, ``nbytes_over_input``, ``build_s``, ``build_peak_bytes`` and
-    ``frame_peak_bytes``.
+    list of dict, one per (size, dtype, method or peer) (:func:`make_row`). Keys:
+    ``size``, ``dtype``, ``method``, ``kind`` ("stbs" or "peer"), ``status`` ("ok" or
+    "skipped") and ``reason``, ``ns_per_vertex`` (median) and ``min_ns_per_vertex``,
+    ``repeats``, ``threads``, ``bytes_per_vertex``, ``bandwidth_gbs``,
+    ``bound_ns_per_vertex``, ``ratio_to_bound``, ``note``; for our methods also
+    ``input_bytes``, ``deformer_nbytes``, ``nbytes_over_input``, ``build_s``,
+    ``build_peak_bytes`` and ``frame_peak_bytes``.
+
+    Raises
+    ------
+    ValueError
+        For an empty or non-positive size, influences outside 1..bones, an unknown
+        dtype or method, before anything is timed.
     """
     import numba as nb
 
     sizes, bones, influences, dtypes = _check_choices(sizes, bones, influences, dtypes,
-                                                      repeats)
-    bad = [m for m in methods if m not in METHODS]
-    if bad:
-        raise ValueError(f"methods must be among {list(METHODS)}, got {bad}")
+                                                      repeats, methods)
     bw = bandwidth if bandwidth is not None else measure_bandwidth()
     threads = int(nb.get_num_threads())
     rows: list[dict] = []
-
-    igl_mod, igl_reason = None, ""
-    exe, exe_info = None, ""
-    if peers:
-        try:
-            import igl as igl_mod
-        except ImportError as exc:
-            igl_reason = (f"libigl is not importable ({exc}); install the bench extra: "
-                          "pip install 'stbs-skinning[bench]'")
-        exe, exe_info = build_igl_dqs(download=download, log=log)
-
     for n in sizes:
-        reps = int(repeats) if repeats is not None else _auto_repeats(n)
+        reps = int(repeats) if repeats is not None else auto_repeats(n)
         log(f"{n:,} vertices: building the rig")
         rig = make_rig(n, bones, influences, seed)
         for dtype in dtypes:
@@ -752,8 +482,8 @@ def run_bench(sizes: Sequence[int] = DEFAULT_SIZES, bones: int = 20, influences:
             if peers:
                 rows.append(_numpy_lbs_row(rig, V_in, reps, bw, log))
                 rows.append(_scipy_lbs_row(rig, V_in, reps, bw, log))
-                rows.append(_igl_lbs_row(rig, V_in, reps, bw, igl_mod, igl_reason, log))
-                rows.append(_igl_dqs_row(rig, dt, reps, bw, exe, exe_info, log))
+            for peer in extra_peers:
+                rows.append(peer(rig, V_in, reps, bw, log))
     return rows
 
 
@@ -770,14 +500,14 @@ def _method_row(rig: BenchRig, V_in: np.ndarray, method: str, reps: int, bw: dic
     buf = np.empty((n, 3), dtype=dt)
     dfm(pose, out=buf)  # compile (or load) the kernel before tracing
     _, frame_peak, _ = _traced_peak(lambda: dfm(pose, out=buf))
-    med, mn = _time_frames(lambda: dfm(pose, out=buf), reps)
+    med, mn = time_frames(lambda: dfm(pose, out=buf), reps)
     k = lay.k
     # per vertex: V (3 values), idx, w, e where used, the output written (3 values)
     bpv = (3 * isz + k * (lay.idx.itemsize + lay.w.itemsize)
            + (k * lay.e.itemsize if uses_e and lay.e is not None else 0) + 3 * isz)
-    inp = V_in.nbytes + _csr_bytes(W) + (_csr_bytes(E) if uses_e else 0)
-    row = _row(n, str(dt), method, "stbs", bw, med=med, mn=mn, repeats=reps, threads=threads,
-               bytes_per_vertex=bpv, note=f"k={k}, idx {lay.idx.dtype}")
+    inp = V_in.nbytes + csr_bytes(W) + (csr_bytes(E) if uses_e else 0)
+    row = make_row(n, str(dt), method, "stbs", bw, med=med, mn=mn, repeats=reps,
+                   threads=threads, bytes_per_vertex=bpv, note=f"k={k}, idx {lay.idx.dtype}")
     row.update(input_bytes=int(inp), deformer_nbytes=int(dfm.nbytes),
                nbytes_over_input=dfm.nbytes / inp, build_s=build_s,
                build_peak_bytes=build_peak, frame_peak_bytes=frame_peak)
@@ -788,94 +518,25 @@ def _numpy_lbs_row(rig: BenchRig, V_in: np.ndarray, reps: int, bw: dict, log: Lo
     n, k, dt = rig.n, rig.idx.shape[1], V_in.dtype
     log(f"{n:,} {dt} numpy-lbs")
     w = rig.w.astype(dt)
-    med, mn = _time_frames(lambda: numpy_lbs(V_in, rig.idx, w, lbs_affines(rig.pose)), reps)
-    return _row(n, str(dt), "numpy-lbs", "peer", bw, med=med, mn=mn, repeats=reps, threads=1,
-                bytes_per_vertex=3 * dt.itemsize + k * (8 + dt.itemsize) + 3 * dt.itemsize,
-                note="einsum over top-k (int64 idx); temporaries not counted")
+    med, mn = time_frames(lambda: numpy_lbs(V_in, rig.idx, w, lbs_affines(rig.pose)), reps)
+    return make_row(n, str(dt), "numpy-lbs", "peer", bw, med=med, mn=mn, repeats=reps,
+                    threads=1,
+                    bytes_per_vertex=3 * dt.itemsize + k * (8 + dt.itemsize) + 3 * dt.itemsize,
+                    note="einsum over top-k (int64 idx); temporaries not counted")
 
 
 def _scipy_lbs_row(rig: BenchRig, V_in: np.ndarray, reps: int, bw: dict, log: Log) -> dict:
     n, dt = rig.n, V_in.dtype
     log(f"{n:,} {dt} scipy-lbs")
     L = lbs_matrix_sparse(V_in, rig.idx, rig.w.astype(dt), rig.sk.n_bones)
-    med, mn = _time_frames(lambda: L @ stacked_transforms(lbs_affines(rig.pose)).astype(dt),
-                           reps)
-    return _row(n, str(dt), "scipy-lbs", "peer", bw, med=med, mn=mn, repeats=reps, threads=1,
-                bytes_per_vertex=_csr_bytes(L) / n + 3 * dt.itemsize,
-                note="sparse (n, 4b) CSR LBS matrix @ T")
-
-
-def _igl_lbs_row(rig: BenchRig, V_in: np.ndarray, reps: int, bw: dict, igl_mod,
-                 igl_reason: str, log: Log) -> dict:
-    n, dt = rig.n, V_in.dtype
-    if igl_mod is None:
-        return _row(n, str(dt), "igl-lbs", "peer", bw, reason=igl_reason)
-    log(f"{n:,} {dt} igl-lbs")
-    M = igl_mod.lbs_matrix(rig.V, rig.W_dense())  # precompute, not timed
-    note = "igl.lbs_matrix (dense) @ T, numpy matmul (BLAS)"
-    if dt != np.float64:
-        M = M.astype(dt)
-        note += "; igl builds M in float64, cast to float32"
-    out = np.empty((n, 3), dtype=dt)
-    med, mn = _time_frames(lambda: np.matmul(
-        M, stacked_transforms(lbs_affines(rig.pose)).astype(dt), out=out), reps)
-    return _row(n, str(dt), "igl-lbs", "peer", bw, med=med, mn=mn, repeats=reps,
-                threads=f"BLAS<={os.cpu_count()}",
-                bytes_per_vertex=(M.shape[1] + 3) * dt.itemsize, note=note)
-
-
-def _igl_dqs_row(rig: BenchRig, dt: np.dtype, reps: int, bw: dict, exe: Path | None,
-                 exe_info: str, log: Log) -> dict:
-    """``exe_info``: how the harness was built, or why it could not be."""
-    n, b = rig.n, rig.sk.n_bones
-    if exe is None:
-        return _row(n, str(dt), "igl-dqs", "peer", bw, reason=exe_info)
-    log(f"{n:,} {dt} igl-dqs (C++)")
-    try:
-        rep, _ = igl_dqs_deform(exe, rig.V, rig.idx, rig.w, rig.pose, repeats=reps,
-                                single=dt == np.float32)
-    except (OSError, RuntimeError, subprocess.TimeoutExpired, ValueError) as exc:
-        return _row(n, str(dt), "igl-dqs", "peer", bw, reason=f"the harness failed: {exc}")
-    row = _row(n, str(dt), "igl-dqs", "peer", bw, repeats=reps, threads=rep["threads"],
-               bytes_per_vertex=(3 + b + 3) * dt.itemsize,
-               note=f"C++ igl::dqs, rigid only, dense W (#V by {b}), Eigen {rep.get('eigen')}")
-    row["detail"] = exe_info
-    row["ns_per_vertex"] = float(rep["median_ns_per_vertex"])
-    row["min_ns_per_vertex"] = float(rep["min_ns_per_vertex"])
-    row["ratio_to_bound"] = row["ns_per_vertex"] / row["bound_ns_per_vertex"]
-    return row
+    med, mn = time_frames(lambda: L @ stacked_transforms(lbs_affines(rig.pose)).astype(dt),
+                          reps)
+    return make_row(n, str(dt), "scipy-lbs", "peer", bw, med=med, mn=mn, repeats=reps,
+                    threads=1, bytes_per_vertex=csr_bytes(L) / n + 3 * dt.itemsize,
+                    note="sparse (n, 4b) CSR LBS matrix @ T")
 
 
 # --------------------------------------------------------------------------- report
-def check_targets(rows: Sequence[dict], size: int = TARGET_SIZE,
-                  dtype: str = TARGET_DTYPE) -> list[dict]:
-    """The issue's targets at ``size`` vertices, ``dtype``: lbs within 1.5x of its
-    bandwidth bound; stbs-dqs (stretch and twist on every bone) no slower than
-    libigl's plain C++ DQS in the same run. Targets whose rows are absent are left out.
-
-    Each target is judged twice, on the median and on the best (minimum) frame time,
-    the same statistic for us and the peer; on a shared 2-core machine the median
-    carries other tenants' noise, the best frame is what the code can do (as timeit
-    reports)."""
-    get = {(r["size"], r["dtype"], r["method"]): r for r in rows if r["status"] == "ok"}
-    out = []
-    lbs = get.get((size, dtype, "lbs"))
-    for stat, key in (("median", "ns_per_vertex"), ("best", "min_ns_per_vertex")):
-        if lbs is not None:
-            ratio = lbs[key] / lbs["bound_ns_per_vertex"]
-            out.append({"target": f"lbs <= {TARGET_LBS_RATIO}x bandwidth bound "
-                                  f"({size:,}, {dtype}, {stat})",
-                        "value": ratio, "limit": TARGET_LBS_RATIO,
-                        "met": ratio <= TARGET_LBS_RATIO})
-        ours, theirs = get.get((size, dtype, "stbs-dqs")), get.get((size, dtype, "igl-dqs"))
-        if ours is not None and theirs is not None:
-            out.append({"target": f"stbs-dqs <= libigl C++ dqs ns/vertex "
-                                  f"({size:,}, {dtype}, {stat})",
-                        "value": ours[key], "limit": theirs[key],
-                        "met": ours[key] <= theirs[key]})
-    return out
-
-
 def _fmt(x, spec: str) -> str:
     return "-" if x is None else format(x, spec)
 
@@ -884,23 +545,17 @@ def _mb(x) -> str:
     return "-" if x is None else f"{x / 1e6:.1f}"
 
 
-def machine_lines(machine: dict, versions: str, what: str) -> list[str]:
-    """The report's first lines: CPU, ``versions`` (with libigl's), load at the start."""
-    lines = [f"machine: {machine.get('cpu')}, {machine.get('cpus')} CPUs; {versions}"
-             + (f", libigl {machine['libigl']}" if machine.get("libigl") else "")]
-    load = machine.get("load_average")
-    if load:
-        busy = f" (other work was running: {what} may be inflated)" if load[0] > 0.5 else ""
-        lines.append(f"load average at start: {load[0]:.2f} {load[1]:.2f} {load[2]:.2f}{busy}")
-    return lines
-
-
 def format_table(rows: Sequence[dict], machine: dict | None = None,
                  bandwidth: dict | None = None) -> str:
-    """A plain-text report: timings (ours and peers), memory, targets."""
+    """A plain-text report: timings (ours and peers), then our methods' memory.
+
+    Rows with a ``detail`` (how a peer was built) add one line each under the table.
+    """
     lines = machine_lines(machine, f"numba {machine.get('numba_threads')} threads; "
                           f"Python {machine.get('python')}, NumPy {machine.get('numpy')}, "
-                          f"numba {machine.get('numba')}", "figures") if machine else []
+                          f"numba {machine.get('numba')}" + "".join(
+                              f", {k} {v}" for k, v in machine.get("peer_versions", {}).items()),
+                          "figures") if machine else []
     if bandwidth:
         lines.append(f"memory bandwidth: {bandwidth['gbs']:.1f} GB/s, triad a = b + s c on "
                      f"{bandwidth['triad_threads']} threads, {bandwidth['array_bytes'] / 2**20:.0f}"
@@ -946,12 +601,6 @@ def format_table(rows: Sequence[dict], machine: dict | None = None,
                 f"{_mb(r['build_peak_bytes']):>10} {r['build_s']:8.2f} "
                 f"{_mb(r['frame_peak_bytes']):>10}")
         lines.append("input = V + W (CSR) + E (CSR, stbs methods); ratio = Deformer / input")
-    targets = check_targets(rows)
-    if targets:
-        lines += ["", "targets:"]
-        for t in targets:
-            lines.append(f"  [{'met' if t['met'] else 'MISSED'}] {t['target']}: "
-                         f"{t['value']:.2f} vs {t['limit']:.2f}")
     return "\n".join(lines)
 
 
@@ -993,56 +642,66 @@ def _parse_methods(text: str) -> tuple[str, ...]:
     return out
 
 
-def _positive_int(text: str) -> int:
-    try:
-        v = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a whole number >= 1, got {text!r}") from None
-    if v < 1:
-        raise argparse.ArgumentTypeError(f"expected a whole number >= 1, got {text!r}")
-    return v
-
-
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Add ``stbs bench``'s options to ``parser``."""
     parser.add_argument("--sizes", type=_parse_sizes, default=DEFAULT_SIZES,
                         help="vertex counts, k and M suffixes allowed (default 10k,100k,1M)")
-    parser.add_argument("--bones", type=_positive_int, default=20,
+    parser.add_argument("--bones", type=positive_int, default=20,
                         help="bones in the random skeleton (default 20)")
-    parser.add_argument("--influences", type=_positive_int, default=4,
+    parser.add_argument("--influences", type=positive_int, default=4,
                         help="non-zero bone weights per vertex (default 4)")
     parser.add_argument("--dtype", type=_parse_dtypes, default=DTYPES,
                         help="storage dtypes: float64,float32 (default both)")
     parser.add_argument("--methods", type=_parse_methods, default=METHODS,
                         help="methods to time (default lbs,dqs,stbs-lbs,stbs-dqs)")
-    parser.add_argument("--repeats", type=_positive_int, default=None,
+    parser.add_argument("--repeats", type=positive_int, default=None,
                         help="timed frames per row after 2 warm-up frames "
                              "(default 10..300 by size)")
     parser.add_argument("--seed", type=int, default=0, help="rig and pose seed (default 0)")
     parser.add_argument("--no-peers", action="store_true",
-                        help="skip the NumPy, SciPy and libigl peers")
-    parser.add_argument("--no-download", action="store_true",
-                        help="never fetch the libigl sdist from PyPI to look for headers")
+                        help="skip the NumPy and SciPy peers")
     parser.add_argument("--json", metavar="OUT.json", default=None,
-                        help="also write the machine, bandwidth, rows and targets as JSON "
+                        help="also write the machine, bandwidth, settings and rows as JSON "
                              "(written to a temporary file, then renamed)")
 
 
-def _write_atomic(path: Path, text: str) -> None:
-    path = Path(path)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        umask = os.umask(0)
-        os.umask(umask)
-        os.chmod(tmp, 0o666 & ~umask)  # mkstemp makes it 0600; give it a normal file's mode
-        with os.fdopen(fd, "w", encoding="utf-8") as f:
-            f.write(text)
-            f.flush()
-            os.fsync(f.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+def collect(args: argparse.Namespace, *, extra_peers: Sequence[Peer] = (),
+            log: Log = quiet) -> dict:
+    """Run the benchmark for parsed ``args`` (:func:`add_arguments`).
+
+    Returns
+    -------
+    dict
+        The JSON document: ``schema``, ``machine``, ``bandwidth``, ``settings``, ``rows``.
+
+    Raises
+    ------
+    ValueError
+        For inconsistent options (influences > bones), before anything is timed.
+    """
+    sizes, bones, influences, dtypes = _check_choices(args.sizes, args.bones, args.influences,
+                                                      args.dtype, args.repeats, args.methods)
+    machine = machine_info()
+    log("measuring memory bandwidth")
+    bw = measure_bandwidth()
+    rows = run_bench(sizes, bones, influences, dtypes, args.repeats,
+                     peers=not args.no_peers, seed=args.seed, methods=args.methods,
+                     bandwidth=bw, extra_peers=extra_peers, log=log)
+    machine["peak_rss_bytes"] = peak_rss_bytes()
+    return {"schema": 1, "machine": machine, "bandwidth": bw,
+            "settings": {"sizes": list(sizes), "bones": bones, "influences": influences,
+                         "dtypes": list(dtypes), "methods": list(args.methods),
+                         "repeats": args.repeats, "seed": args.seed, "warmup": WARMUP,
+                         "stat": "median"},
+            "rows": rows}
+
+
+def print_report(doc: dict) -> None:
+    """Print the table of a :func:`collect` document and the process's peak memory."""
+    print(format_table(doc["rows"], doc["machine"], doc["bandwidth"]))
+    rss = doc["machine"].get("peak_rss_bytes")
+    if rss:
+        print(f"\npeak resident memory of this process: {rss / 1e6:.0f} MB")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -1051,45 +710,25 @@ def run(args: argparse.Namespace) -> int:
     Raises
     ------
     ValueError
-        For inconsistent options (influences > bones) or an unwritable ``--json``
-        folder, before anything is timed.
+        For inconsistent options (influences > bones) or an unusable ``--json`` path,
+        before anything is timed.
     """
-    sizes, bones, influences, dtypes = _check_choices(args.sizes, args.bones, args.influences,
-                                                      args.dtype, args.repeats)
-    out = Path(args.json) if args.json else None
-    if out is not None:
-        parent = out.parent if str(out.parent) else Path(".")
-        if not parent.is_dir():
-            raise ValueError(f"--json: folder {parent} does not exist")
-        if not os.access(parent, os.W_OK):
-            raise ValueError(f"--json: folder {parent} is not writable")
+    out = check_json_path(args.json)
 
     def log(msg: str) -> None:
         print(f"stbs bench: {msg}", file=sys.stderr, flush=True)
 
-    machine = machine_info()
-    log("measuring memory bandwidth")
-    bw = measure_bandwidth()
-    rows = run_bench(sizes, bones, influences, dtypes, args.repeats,
-                     peers=not args.no_peers, seed=args.seed, methods=args.methods,
-                     bandwidth=bw, download=not args.no_download, log=log)
-    machine["peak_rss_bytes"] = _peak_rss_bytes()
-    print(format_table(rows, machine, bw))
-    if machine["peak_rss_bytes"]:
-        print(f"\npeak resident memory of this process: {machine['peak_rss_bytes'] / 1e6:.0f} MB")
+    doc = collect(args, log=log)
+    print_report(doc)
     if out is not None:
-        doc = {"schema": 1, "machine": machine, "bandwidth": bw,
-               "settings": {"sizes": list(sizes), "bones": bones, "influences": influences,
-                            "dtypes": list(dtypes), "repeats": args.repeats, "seed": args.seed,
-                            "warmup": WARMUP, "stat": "median"},
-               "rows": rows, "targets": check_targets(rows)}
-        _write_atomic(out, json.dumps(doc, indent=1, allow_nan=False))
+        write_json(out, doc)
         log(f"wrote {out}")
     return 0
 
 
-def main_bench(argv: Sequence[str] | None = None) -> int:
-    """``python -m stbs.bench [options]``: the same as ``stbs bench``."""
+def main(argv: Sequence[str] | None = None) -> int:
+    """``python -m stbs.bench [options]``: the same as ``stbs bench``; returns the exit
+    status (2 and one line on stderr for a bad option)."""
     p = argparse.ArgumentParser(prog="stbs bench", description=__doc__.splitlines()[0])
     add_arguments(p)
     args = p.parse_args(argv)
@@ -1098,7 +737,3 @@ def main_bench(argv: Sequence[str] | None = None) -> int:
     except ValueError as exc:
         print(f"stbs bench: error: {exc}", file=sys.stderr)
         return 2
-
-
-if __name__ == "__main__":
-    sys.exit(main_bench())

@@ -1,46 +1,34 @@
-"""Bounded biharmonic weights against libigl's ``igl.bbw`` (``stbs bench --weights``).
+"""Bounded biharmonic weights on this machine (``stbs bench --weights``).
 
-Each comparison case builds a mesh with the skeleton's samples among its vertices,
-takes the boundary conditions ``b``, ``bc`` of :func:`stbs.weights.boundary_conditions`
-(the first ``m`` functions), and gives *the same* ``b`` and ``bc`` to both solvers:
+Each solve case builds a mesh with the skeleton's samples among its vertices, takes
+the boundary conditions ``b``, ``bc`` of :func:`stbs.weights.boundary_conditions`
+(the first ``m`` functions) and times ``BBWSolver(V, E, backend=...)`` followed by
+``.solve(b, bc, tol=...)`` (matrices, factorization and the bounded solve, as a user
+pays them). The result is checked against the KKT conditions of the QP (the natural
+residual, :func:`kkt_residual`). Meshing is timed apart and never counted.
 
-- ``stbs``: ``BBWSolver(V, E, backend=...)`` followed by ``.solve(b, bc, tol=...)``;
-  both are timed, as ``igl.bbw`` also builds its matrices (L, M, Q) inside;
-- ``igl.bbw``: libigl's Python binding with its default parameters (the ``bench``
-  extra), run only up to ``igl_max_vertices`` vertices, since it takes minutes on
-  large meshes.
-
-Both results are checked against the KKT conditions of the same QP (the natural
-residual, :func:`kkt_residual`), and against each other (``max |W_stbs - W_igl|``).
-Meshing is timed apart and never counted in the BBW times.
-
-The ``rig-*`` case makes a complete rig the way a user would, through the library:
-``stbs.weights.bone_weights(..., method="bbw", T=T)`` then
-``stbs.weights.endpoint_weights(..., method="bbw", W=W, T=T)``, timed per stage and
-judged against the issue's goal (under 60 s for a 20-bone rig of a ~50k-vertex mesh).
+The ``rig-*`` case makes a complete rig the way a user would, through the library's
+pipeline :func:`stbs.build_rig` (bone weights by BBW, then endpoint weights by BBW
+restricted to each bone's support), timed per stage.
 
 Meshes (deterministic, rebuilt each run):
 
 - 2D: a wavy blob around a 3-bone chain, :func:`stbs.triangulate_2d` with the bones
   inserted as constrained segments;
-- 3D: the surface of libigl's ``hand.mesh`` (tutorial data, 20-bone ``hand.tgf``)
-  tetrahedralized by :func:`stbs.tetrahedralize` with the bones inserted as vertices;
-  without the shared data folder (:func:`stbs.io.shared_data.data_dir`), a built-in
-  ellipsoid around a 20-bone chain (:func:`stbs.demo.shapes.cigar`) instead.
+- 3D: a built-in ellipsoid around a straight 20-bone chain, tetrahedralized by
+  :func:`stbs.tetrahedralize` with the bones inserted as vertices; or, given a folder
+  holding libigl's tutorial ``hand.mesh`` and ``hand.tgf`` (``mesh_dir``,
+  ``--mesh-dir``), the surface of that hand with its 20 bones.
 
-Docs: ``docs/benchmarks.md``. Timing lives here, never in the tests.
+Nothing here touches the network or starts a process. Docs: ``docs/benchmarks.md``.
 """
 
 from __future__ import annotations
 
 import argparse
-import importlib.util
-import json
 import os
 import platform
-import subprocess
 import sys
-import tempfile
 import time
 import warnings
 from collections.abc import Callable, Sequence
@@ -49,26 +37,31 @@ from pathlib import Path
 
 import numpy as np
 
-from .skeleton import Skeleton
+from ..skeleton import Skeleton
+from .report import (
+    check_json_path,
+    cpu_model,
+    int_at_least,
+    load_average,
+    machine_lines,
+    platform_name,
+    positive_float,
+    quiet,
+    write_json,
+)
 
-__all__ = ["CASES", "DEFAULT_CASES", "BACKENDS", "SPEEDUP_GOAL", "DIFF_GOAL", "RIG_GOAL_S",
-           "CaseSpec", "Problem", "make_problem", "kkt_residual", "igl_bbw", "compare_case",
-           "rig_case", "warm_up", "check_targets", "format_table", "add_arguments", "run", "main"]
+__all__ = ["CASES", "DEFAULT_CASES", "BACKENDS", "DEFAULT_TOL", "HAND_FILES", "COLUMNS",
+           "CaseSpec", "Problem", "make_problem", "boundary", "bilaplacian", "kkt_residual",
+           "warm_up", "solve_case", "rig_case", "machine_info", "format_table", "format_rigs",
+           "add_arguments", "collect", "run", "main"]
 
-#: The issue's goals: stbs at least 10x faster than igl.bbw with max |dW| <= 1e-3 on
-#: every comparison case, and a complete 20-bone rig of a ~50k-vertex mesh in < 60 s.
-SPEEDUP_GOAL, DIFF_GOAL, RIG_GOAL_S = 10.0, 1e-3, 60.0
 BACKENDS: tuple[str, ...] = ("auto", "cholmod", "cholespy", "scipy")
-DEFAULT_IGL_MAX_VERTICES = 20_000
-#: stbs's KKT tolerance unless --tol says otherwise: the accuracy class of igl.bbw,
-#: which stops at a natural residual of ~5e-7 (docs/bbw.md).
+#: Our KKT tolerance unless --tol says otherwise (the rig pipeline's default too).
 DEFAULT_TOL = 1e-6
+#: What ``mesh_dir`` must hold: libigl's tutorial hand (tetrahedra) and its skeleton.
+HAND_FILES = ("hand.mesh", "hand.tgf")
 
 Log = Callable[[str], None]
-
-
-def _quiet(msg: str) -> None:
-    pass
 
 
 @dataclass(frozen=True)
@@ -81,13 +74,12 @@ class CaseSpec:
     dim : int
         2 or 3.
     vertices : int
-        Target vertex count of the mesh (the mesh has about this many).
-    kind : {"compare", "rig"}
-        Against igl.bbw, or a complete rig through the library.
+        The vertex count the mesh is made for (it has about this many); 0 for a mesh
+        used as it is read.
+    kind : {"solve", "rig"}
+        A timed BBW solve of ``m`` functions, or a complete rig through the library.
     about : str
         One line for ``--help`` and the report.
-    goal : bool
-        One of the issue's sizes, judged against the goals (the others are extras).
     """
 
     name: str
@@ -95,20 +87,19 @@ class CaseSpec:
     vertices: int
     kind: str
     about: str
-    goal: bool = True
 
 
 CASES: dict[str, CaseSpec] = {c.name: c for c in (
-    CaseSpec("2d-small", 2, 1_000, "compare", "2D blob, 3-bone chain, ~1k vertices (for tests)",
-             goal=False),
-    CaseSpec("2d-5k", 2, 5_000, "compare", "2D blob, 3-bone chain, ~5k vertices"),
-    CaseSpec("2d-20k", 2, 20_000, "compare", "2D blob, 3-bone chain, ~20k vertices"),
-    CaseSpec("3d-10k", 3, 10_000, "compare", "hand surface tetrahedralized, ~10k vertices"),
-    CaseSpec("3d-50k", 3, 50_000, "compare", "hand surface tetrahedralized, ~50k vertices"),
-    CaseSpec("hand", 3, 0, "compare", "libigl's hand.mesh as shipped (7,234 vertices)",
-             goal=False),
+    CaseSpec("2d-small", 2, 1_000, "solve", "2D blob, 3-bone chain, ~1k vertices"),
+    CaseSpec("2d-5k", 2, 5_000, "solve", "2D blob, 3-bone chain, ~5k vertices"),
+    CaseSpec("2d-20k", 2, 20_000, "solve", "2D blob, 3-bone chain, ~20k vertices"),
+    CaseSpec("3d-10k", 3, 10_000, "solve",
+             "20-bone surface tetrahedralized, ~10k vertices (built-in, or --mesh-dir's hand)"),
+    CaseSpec("3d-50k", 3, 50_000, "solve",
+             "20-bone surface tetrahedralized, ~50k vertices (built-in, or --mesh-dir's hand)"),
+    CaseSpec("hand", 3, 0, "solve", "libigl's hand.mesh as shipped (needs --mesh-dir)"),
     CaseSpec("rig-50k", 3, 50_000, "rig",
-             "complete 20-bone rig (bone + endpoint BBW) of the ~50k-vertex hand mesh"),
+             "complete 20-bone rig (bone + endpoint BBW) of the 3d-50k mesh"),
 )}
 DEFAULT_CASES: tuple[str, ...] = ("2d-5k", "2d-20k", "3d-10k", "3d-50k", "rig-50k")
 
@@ -159,24 +150,30 @@ def _blob_outline() -> tuple[np.ndarray, Skeleton, float]:
     return outline, sk, area
 
 
-def _hand_folder() -> Path | None:
-    """The shared data's ``libigl-tutorial-data`` when it holds the hand, else None."""
-    from .io.shared_data import data_dir
+def _hand_folder(mesh_dir: str | os.PathLike | None) -> Path | None:
+    """``mesh_dir`` checked to hold :data:`HAND_FILES`; None when not given.
 
-    root = data_dir()
-    folder = None if root is None else root / "libigl-tutorial-data"
-    if folder is None or not all((folder / f).is_file() for f in ("hand.mesh", "hand.tgf")):
+    Raises
+    ------
+    ValueError
+        ``mesh_dir`` is given but is not a folder holding both files.
+    """
+    if mesh_dir is None:
         return None
+    folder = Path(mesh_dir)
+    if not folder.is_dir():
+        raise ValueError(f"--mesh-dir: {folder} is not a folder")
+    absent = [f for f in HAND_FILES if not (folder / f).is_file()]
+    if absent:
+        raise ValueError(f"--mesh-dir: {folder} has no {' or '.join(absent)} (expected "
+                         "libigl's tutorial hand.mesh and hand.tgf)")
     return folder
 
 
-def _hand_surface() -> tuple[np.ndarray, np.ndarray, Skeleton, str] | None:
+def _hand_surface(folder: Path) -> tuple[np.ndarray, np.ndarray, Skeleton, str]:
     """libigl's hand: the boundary triangles of ``hand.mesh`` (compacted) and ``hand.tgf``."""
-    from .io import read_mesh, read_tgf
+    from ..io import read_mesh, read_tgf
 
-    folder = _hand_folder()
-    if folder is None:
-        return None
     m = read_mesh(folder / "hand.mesh")
     C, BE = read_tgf(folder / "hand.tgf")
     used = np.unique(m.F)
@@ -186,10 +183,11 @@ def _hand_surface() -> tuple[np.ndarray, np.ndarray, Skeleton, str] | None:
 
 
 def _chain_surface(bones: int = 20) -> tuple[np.ndarray, np.ndarray, Skeleton, str]:
-    """Built-in stand-in: an ellipsoid (4 x 1 x 1) around a straight chain of ``bones`` bones."""
-    from .demo.shapes import cigar
+    """Built-in: an ellipsoid (4 x 1 x 1) around a straight chain of ``bones`` bones."""
+    from ..shapes import cigar
 
-    V, F, _, _ = cigar(30, half_length=2.0, radius=0.5)
+    shape = cigar(30, half_length=2.0, radius=0.5)
+    V, F = shape[0], shape[1]
     x = np.linspace(-1.6, 1.6, bones + 1)
     C = np.c_[x, np.zeros_like(x), np.zeros_like(x)]
     BE = np.c_[np.arange(bones), np.arange(1, bones + 1)]
@@ -205,18 +203,20 @@ def _enclosed_volume(V: np.ndarray, F: np.ndarray) -> float:
 class _Meshes:
     """Builds the cases' meshes, each (shape, size) once per run: 3d-50k and rig-50k share."""
 
-    def __init__(self, log: Log = _quiet):
+    def __init__(self, mesh_dir: str | os.PathLike | None = None, log: Log = quiet):
+        self.folder = _hand_folder(mesh_dir)
         self.log = log
         self._done: dict[tuple, Problem] = {}
         self._surface = None
 
     def surface(self):
         if self._surface is None:
-            self._surface = _hand_surface()
-            if self._surface is None:
-                self.log("shared data (libigl-tutorial-data/hand.mesh) not found: the 3D "
-                         "cases use a built-in ellipsoid around a 20-bone chain instead")
+            if self.folder is None:
+                self.log("3D cases: a built-in ellipsoid around a 20-bone chain (--mesh-dir "
+                         "with libigl's hand.mesh and hand.tgf uses the hand instead)")
                 self._surface = _chain_surface(20)
+            else:
+                self._surface = _hand_surface(self.folder)
         return self._surface
 
     def get(self, name: str) -> Problem:
@@ -228,7 +228,7 @@ class _Meshes:
         return Problem(name, P.V, P.E, P.sk, P.source, P.meshing_s)
 
     def _build(self, spec: CaseSpec) -> Problem:
-        from .meshing import tetrahedralize, triangulate_2d
+        from ..meshing import tetrahedralize, triangulate_2d
 
         if spec.dim == 2:
             outline, sk, area = _blob_outline()
@@ -256,26 +256,43 @@ class _Meshes:
                        time.perf_counter() - t)
 
     def _hand_as_shipped(self, spec: CaseSpec) -> Problem:
-        from .io import read_mesh, read_tgf
+        from ..io import read_mesh, read_tgf
 
-        folder = _hand_folder()
-        if folder is None:
-            raise ValueError(f"case {spec.name!r} needs the shared data folder "
-                             "(libigl-tutorial-data/hand.mesh, hand.tgf); set STBS_DATA")
-        m = read_mesh(folder / "hand.mesh")
-        C, BE = read_tgf(folder / "hand.tgf")
-        return Problem(spec.name, m.V, m.T, Skeleton(C, BE), f"libigl hand.mesh ({folder})", 0.0)
+        if self.folder is None:
+            raise ValueError(_needs_mesh_dir(spec.name))
+        m = read_mesh(self.folder / "hand.mesh")
+        C, BE = read_tgf(self.folder / "hand.tgf")
+        return Problem(spec.name, m.V, m.T, Skeleton(C, BE),
+                       f"libigl hand.mesh ({self.folder})", 0.0)
 
 
-def make_problem(name: str, *, log: Log = _quiet) -> Problem:
-    """The mesh of case ``name`` (one of :data:`CASES`)."""
+def _needs_mesh_dir(case: str) -> str:
+    return (f"case {case!r} needs --mesh-dir DIR, a folder holding libigl's tutorial "
+            "hand.mesh and hand.tgf")
+
+
+def make_problem(name: str, *, mesh_dir: str | os.PathLike | None = None,
+                 log: Log = quiet) -> Problem:
+    """The mesh of case ``name`` (one of :data:`CASES`).
+
+    Parameters
+    ----------
+    name : str
+    mesh_dir : path, optional
+        A folder holding libigl's ``hand.mesh`` and ``hand.tgf``: the 3D cases then
+        tetrahedralize the hand's surface, and the ``hand`` case (which needs it) uses
+        the mesh as it is.
+    log : callable
+        Progress messages.
+    """
     if name not in CASES:
         raise ValueError(f"case must be one of {', '.join(CASES)}, got {name!r}")
-    return _Meshes(log).get(name)
+    return _Meshes(mesh_dir, log).get(name)
 
 
-def _boundary(P: Problem) -> tuple[np.ndarray, np.ndarray]:
-    from .weights.boundary import boundary_conditions
+def boundary(P: Problem) -> tuple[np.ndarray, np.ndarray]:
+    """``b`` (k,) and ``bc`` (k, b) of :func:`stbs.weights.boundary_conditions` on ``P``."""
+    from ..weights import boundary_conditions
 
     tri = P.E.shape[1] == 3
     return boundary_conditions(P.V, P.sk, F=P.E if tri else None, T=None if tri else P.E)
@@ -283,11 +300,11 @@ def _boundary(P: Problem) -> tuple[np.ndarray, np.ndarray]:
 
 # --------------------------------------------------------------------------- checks
 def bilaplacian(V: np.ndarray, E: np.ndarray):
-    """``Q = L M^-1 L`` (n, n) CSR, built independently of either solver (libigl's default
+    """``Q = L M^-1 L`` (n, n) CSR, built independently of the solver (libigl's default
     mass matrix: voronoi for triangles, barycentric for tetrahedra)."""
     import scipy.sparse as sp
 
-    from .weights.laplacian import cotmatrix, massmatrix
+    from ..weights import cotmatrix, massmatrix
 
     L = sp.csr_array(cotmatrix(V, E))
     m = massmatrix(V, E).diagonal()
@@ -317,127 +334,55 @@ def kkt_residual(Q, W: np.ndarray, b: np.ndarray) -> float:
     return float(np.abs(X - np.clip(X - Z, 0.0, 1.0)).max()) if U.size else 0.0
 
 
-# --------------------------------------------------------------------------- igl.bbw
-_CHILD = """\
-import sys, time
-import numpy as np
-import igl
-z = np.load(sys.argv[1])
-args = [np.ascontiguousarray(z[k]) for k in ("V", "E", "b", "bc")]
-t = time.perf_counter()
-W = igl.bbw(*args)
-t = time.perf_counter() - t
-np.savez(sys.argv[2], W=W, seconds=t)
-"""
-
-
-def igl_available() -> tuple[bool, str]:
-    """Whether ``igl.bbw`` can run here, and if not, why (one phrase)."""
-    if importlib.util.find_spec("igl") is None:
-        return False, "libigl not installed: pip install 'stbs-skinning[bench]'"
-    try:
-        import igl
-    except ImportError as exc:  # broken installation
-        return False, f"import igl failed: {exc}"
-    if not hasattr(igl, "bbw"):
-        return False, "this libigl has no igl.bbw"
-    return True, ""
-
-
-def igl_bbw(V, E, b, bc, *, timeout: float | None = None) -> tuple[np.ndarray | None, float]:
-    """Run ``igl.bbw(V, E, b, bc)`` (default parameters) and time it.
-
-    Parameters
-    ----------
-    V : (n, d) float, E : (f, 3) or (t, 4) int, b : (k,) int, bc : (k, m) float
-    timeout : float, optional
-        Seconds. When given, igl runs in a child Python process (a C++ call cannot be
-        interrupted in-process), which is killed after ``timeout`` seconds; the time
-        is measured around ``igl.bbw`` in the child, so start-up is not counted.
-
-    Returns
-    -------
-    W : (n, m) float64, or None when the time limit was reached
-    seconds : float
-        Wall time of ``igl.bbw`` (``timeout`` when it was reached).
-    """
-    V = np.ascontiguousarray(V, dtype=np.float64)
-    E = np.ascontiguousarray(E, dtype=np.int64)
-    b = np.ascontiguousarray(b, dtype=np.int64)
-    bc = np.ascontiguousarray(bc, dtype=np.float64)
-    if timeout is None:
-        import igl
-
-        t = time.perf_counter()
-        W = igl.bbw(V, E, b, bc)
-        return np.asarray(W), time.perf_counter() - t
-    with tempfile.TemporaryDirectory(prefix="stbs-igl-bbw-") as d:
-        src, dst = Path(d) / "in.npz", Path(d) / "out.npz"
-        np.savez(src, V=V, E=E, b=b, bc=bc)
-        try:
-            subprocess.run([sys.executable, "-c", _CHILD, str(src), str(dst)], check=True,
-                           capture_output=True, text=True, timeout=timeout, cwd=d)
-        except subprocess.TimeoutExpired:
-            return None, float(timeout)
-        except subprocess.CalledProcessError as exc:
-            tail = (exc.stderr or "").strip().splitlines()[-1:] or [f"exit status {exc.returncode}"]
-            raise RuntimeError(f"igl.bbw failed in its child process: {tail[0]}") from None
-        with np.load(dst) as z:
-            return np.array(z["W"]), float(z["seconds"])
-
-
 # --------------------------------------------------------------------------- cases
 _WARM: set = set()
 
 
-def warm_up(backend: str = "auto", *, igl: bool = False, tol: float = DEFAULT_TOL) -> None:
-    """Solve the ``2d-small`` case once per process before anything is timed.
+def warm_up(backend: str = "auto", *, tol: float = DEFAULT_TOL) -> None:
+    """Solve the ``2d-small`` case once per process and backend before anything is timed.
 
     The first BBW solve in a process also loads the compiled (numba) kernels from
-    their cache, starts the solve threads and touches CHOLMOD for the first time:
-    about 0.5 s that a long-running process pays once. ``igl.bbw`` is imported
-    outside its timing too, so neither side's one-time start-up is counted.
+    their cache, starts the solve threads and touches the Cholesky library for the
+    first time: about 0.5 s that a long-running process pays once.
     """
-    from .weights.bbw import BBWSolver
+    from ..weights import BBWSolver
 
-    if ("stbs", backend) in _WARM and (not igl or "igl" in _WARM):
+    if ("stbs", backend) in _WARM:
         return
     P = make_problem("2d-small")
-    b, bc = _boundary(P)
-    if ("stbs", backend) not in _WARM:
-        BBWSolver(P.V, P.E, backend=backend).solve(b, bc, tol=tol)
-        _WARM.add(("stbs", backend))
-    if igl and "igl" not in _WARM:
-        igl_bbw(P.V, P.E, b, bc)
-        _WARM.add("igl")
+    b, bc = boundary(P)
+    BBWSolver(P.V, P.E, backend=backend).solve(b, bc, tol=tol)
+    _WARM.add(("stbs", backend))
 
 
-def compare_case(P: Problem, *, functions: int = 3, backend: str = "auto", repeat: int = 1,
-                 tol: float = DEFAULT_TOL, igl_max_vertices: int = DEFAULT_IGL_MAX_VERTICES,
-                 igl_timeout: float | None = None, log: Log = _quiet) -> dict:
-    """Time stbs's BBW and igl.bbw on ``P`` with the same ``b`` and the first
-    ``functions`` columns of ``bc``; best of ``repeat`` runs each.
+def solve_case(P: Problem, *, functions: int = 3, backend: str = "auto", repeat: int = 1,
+               tol: float = DEFAULT_TOL, return_weights: bool = False,
+               log: Log = quiet) -> dict | tuple[dict, np.ndarray]:
+    """Time our BBW on ``P`` with its ``b`` and the first ``functions`` columns of ``bc``;
+    best of ``repeat`` runs.
 
     Returns
     -------
-    dict
-        One row: ``case, vertices, elements, element_kind, functions, meshing_s,
-        stbs_s, igl_s, igl_status ("ok" or why not), speedup, max_abs_dW, kkt_stbs,
-        kkt_igl, kkt_stbs_reported, backend, converged, constrained, source``.
-        Times in seconds; quantities that were not measured are None.
+    row : dict
+        ``case, kind ("solve"), vertices, elements, element_kind, functions,
+        constrained, meshing_s, source, repeat, tol, stbs_s, backend, converged,
+        kkt_stbs`` (:func:`kkt_residual` of the result) and ``kkt_stbs_reported`` (the
+        solver's own). Times in seconds.
+    W : (n, functions) float64
+        Only with ``return_weights``: the weights of the best run.
     """
-    from .weights.bbw import BBWSolver
+    from ..weights import BBWSolver
 
-    b, bc = _boundary(P)
+    b, bc = boundary(P)
     m = min(int(functions), bc.shape[1])
     bc = np.ascontiguousarray(bc[:, :m])
-    row = {"case": P.name, "kind": "compare", "vertices": P.n, "elements": int(P.E.shape[0]),
+    row = {"case": P.name, "kind": "solve", "vertices": P.n, "elements": int(P.E.shape[0]),
            "element_kind": P.element_kind, "functions": m, "constrained": int(b.size),
            "meshing_s": P.meshing_s, "source": P.source, "repeat": int(repeat), "tol": tol}
     best, W, report = np.inf, None, None
     warm_up(backend, tol=tol)
     for r in range(int(repeat)):
-        log(f"{P.name}: stbs BBW ({P.n:,} vertices, m={m}, backend {backend}), "
+        log(f"{P.name}: BBW ({P.n:,} vertices, m={m}, backend {backend}), "
             f"run {r + 1}/{repeat}")
         t = time.perf_counter()
         solver = BBWSolver(P.V, P.E, backend=backend)
@@ -450,164 +395,106 @@ def compare_case(P: Problem, *, functions: int = 3, backend: str = "auto", repea
     row["converged"] = bool(getattr(report, "all_converged", True))
     res = getattr(report, "kkt_residual", None)
     row["kkt_stbs_reported"] = None if res is None else float(np.max(res))
-    Q = bilaplacian(P.V, P.E)
-    row["kkt_stbs"] = kkt_residual(Q, W, b)
+    row["kkt_stbs"] = kkt_residual(bilaplacian(P.V, P.E), W, b)
+    return (row, W) if return_weights else row
 
-    row.update(igl_s=None, speedup=None, max_abs_dW=None, kkt_igl=None)
-    ok, why = igl_available()
-    if P.n > igl_max_vertices:
-        row["igl_status"] = f"not run (n > {igl_max_vertices})"
-    elif not ok:
-        row["igl_status"] = f"not run ({why})"
-    else:
-        best_igl, Wi = np.inf, None
-        if igl_timeout is None:          # in-process: warm it up as stbs was
-            warm_up(backend, igl=True, tol=tol)
-        for r in range(int(repeat)):
-            log(f"{P.name}: igl.bbw, run {r + 1}/{repeat}"
-                + (f" (time limit {igl_timeout:g} s)" if igl_timeout else ""))
-            Wr, dt = igl_bbw(P.V, P.E, b, bc, timeout=igl_timeout)
-            if Wr is None:
-                row["igl_status"] = f"timed out (> {igl_timeout:g} s)"
-                row["igl_s"] = None
-                break
-            if dt < best_igl:
-                best_igl, Wi = dt, Wr
-        else:
-            row.update(igl_status="ok", igl_s=best_igl, speedup=best_igl / best,
-                       max_abs_dW=float(np.abs(W - Wi).max()), kkt_igl=kkt_residual(Q, Wi, b))
-    return row
+
+def _stage_clock(marks: list) -> Callable[[str, int, int], None]:
+    """A ``build_rig`` progress callback that appends ``(stage, start time)`` to ``marks``."""
+    def progress(stage: str, done: int, total: int) -> None:
+        if done == 0 and total == 0:          # a stage starts
+            marks.append((stage, time.perf_counter()))
+    return progress
 
 
 def rig_case(P: Problem, *, repeat: int = 1, tol: float = DEFAULT_TOL,
-             log: Log = _quiet) -> dict:
-    """A complete rig of ``P`` through the library, timed per stage (best total of
-    ``repeat`` runs): bone weights by BBW (all bones, normalised), then endpoint
-    weights by BBW restricted to each bone's support, both with KKT tolerance ``tol``.
+             log: Log = quiet) -> dict:
+    """A complete rig of ``P`` through :func:`stbs.build_rig` (bone weights by BBW, then
+    endpoint weights by BBW restricted to each bone's support, KKT tolerance ``tol``),
+    timed per stage; the best total of ``repeat`` runs.
+
+    A tetrahedral ``P`` is given as ``T``, used as it is; a 2D ``P`` as ``F`` (the
+    pipeline re-triangulates its outline with the bones inside, a stage of its own).
 
     Returns
     -------
     dict
-        ``case, vertices, elements, element_kind, bones, meshing_s, stages`` (a dict
-        of stage name to seconds), ``total_s``, ``goal_s`` and ``met``.
+        ``case, kind ("rig"), vertices, elements, element_kind, bones, meshing_s,
+        source, repeat, tol, stages`` (stage name to seconds, in order), ``total_s`` (the
+        wall time of ``build_rig``), ``W_row_sum_error`` and ``E_range``.
     """
-    from .weights import bone_weights, endpoint_weights
+    from ..rig import build_rig
 
-    tri = P.E.shape[1] == 3
-    mesh = {"F": P.E} if tri else {"T": P.E}
+    mesh = {"F": P.E} if P.E.shape[1] == 3 else {"T": P.E}
     best = None
     warm_up(tol=tol)
     for r in range(int(repeat)):
         log(f"{P.name}: complete rig ({P.n:,} vertices, {P.sk.n_bones} bones), "
             f"run {r + 1}/{repeat}")
-        stages = {}
-        t = time.perf_counter()
-        W = bone_weights(P.V, P.sk, method="bbw", tol=tol, **mesh)
-        stages["bone weights (bbw)"] = time.perf_counter() - t
-        t = time.perf_counter()
-        E = endpoint_weights(P.V, P.sk, method="bbw", W=W, tol=tol, **mesh)
-        stages["endpoint weights (bbw)"] = time.perf_counter() - t
-        total = sum(stages.values())
+        marks: list[tuple[str, float]] = []
+        t0 = time.perf_counter()
+        rig = build_rig(P.V, P.sk, bone="bbw", endpoint="bbw", tol=tol,
+                        progress=_stage_clock(marks), **mesh)
+        t1 = time.perf_counter()
+        total = t1 - t0
+        ends = [t for _, t in marks[1:]] + [t1]
+        stages = {name: end - start for (name, start), end in zip(marks, ends, strict=True)}
         if best is None or total < best[0]:
-            best = (total, stages, W, E)
-    total, stages, W, E = best
+            best = (total, stages, rig)
+    total, stages, rig = best
+    W = rig.W.toarray() if hasattr(rig.W, "toarray") else np.asarray(rig.W)
+    E = rig.E.toarray() if hasattr(rig.E, "toarray") else np.asarray(rig.E)
     return {"case": P.name, "kind": "rig", "vertices": P.n, "elements": int(P.E.shape[0]),
             "element_kind": P.element_kind, "bones": P.sk.n_bones, "meshing_s": P.meshing_s,
             "source": P.source, "repeat": int(repeat), "tol": float(tol), "stages": stages,
-            "total_s": total,
-            "goal_s": RIG_GOAL_S, "met": total < RIG_GOAL_S,
-            "W_row_sum_error": float(np.abs(W.sum(axis=1) - 1).max()),
+            "total_s": total, "W_row_sum_error": float(np.abs(W.sum(axis=1) - 1).max()),
             "E_range": [float(E.min()), float(E.max())]}
 
 
 # --------------------------------------------------------------------------- report
-def check_targets(rows: Sequence[dict]) -> list[dict]:
-    """The issue's goals, one entry per case plus the overall verdict.
-
-    Each entry: ``target`` (text), ``case``, ``status`` (``"met"``, ``"MISSED"`` or
-    ``"not judged"``) and ``detail``. Only the issue's cases are judged (not the
-    extras ``2d-small`` and ``hand``), a comparison case only where igl ran.
-    """
-    out = []
-    judged = []
-    for r in rows:
-        spec = CASES.get(r["case"])
-        if spec is not None and not spec.goal:
-            continue
-        if r["kind"] == "rig":
-            out.append({"target": f"complete {r['bones']}-bone rig in < {r['goal_s']:g} s",
-                        "case": r["case"], "status": "met" if r["met"] else "MISSED",
-                        "detail": f"{r['total_s']:.1f} s"})
-            continue
-        target = f"stbs >= {SPEEDUP_GOAL:g}x igl.bbw with max|dW| <= {DIFF_GOAL:g}"
-        if r["igl_status"] != "ok":
-            out.append({"target": target, "case": r["case"], "status": "not judged",
-                        "detail": f"igl.bbw {r['igl_status']}"})
-            judged.append(None)
-            continue
-        met = r["speedup"] >= SPEEDUP_GOAL and r["max_abs_dW"] <= DIFF_GOAL
-        judged.append(met)
-        out.append({"target": target, "case": r["case"], "status": "met" if met else "MISSED",
-                    "detail": f"{r['speedup']:.1f}x, max|dW| {r['max_abs_dW']:.1e}"})
-    if judged:
-        if any(j is False for j in judged):
-            status = "MISSED"
-        elif all(j is True for j in judged):
-            status = "met"
-        else:
-            status = "not judged"
-        n_ok = sum(j is not None for j in judged)
-        out.append({"target": f"stbs >= {SPEEDUP_GOAL:g}x igl.bbw with max|dW| <= "
-                              f"{DIFF_GOAL:g} on every size", "case": "all",
-                    "status": status, "detail": f"{n_ok} of {len(judged)} cases judged"})
-    return out
-
-
 def _f(x, spec: str, missing: str = "-") -> str:
     return missing if x is None else format(x, spec)
 
 
-COLUMNS = ("case", "vertices", "elements", "m", "igl.bbw s", "stbs s", "speed-up",
-           "max|dW|", "KKT stbs", "KKT igl", "backend")
+COLUMNS = ("case", "vertices", "elements", "m", "stbs s", "KKT", "backend")
 
 
 def format_table(rows: Sequence[dict], machine: dict | None = None,
                  settings: dict | None = None) -> str:
-    """A plain-text report: the comparison table, the rig stages, the goals."""
-    from .bench import machine_lines
-
+    """A plain-text report: the solve cases' table, then each rig's stages."""
     lines = machine_lines(machine, f"Python {machine.get('python')}, NumPy "
                           f"{machine.get('numpy')}, SciPy {machine.get('scipy')}",
                           "times") if machine else []
     if settings:
-        nmax = settings["igl_max_vertices"]
-        lines.append(f"stbs tol {settings['tol']:g}; best of {settings['repeat']} run(s); "
-                     + (f"igl.bbw default parameters, up to {nmax:,} vertices" if nmax
-                        else "igl.bbw not run (--igl-max-vertices 0)"))
-    lines.append("stbs s = BBWSolver(V, E) + solve (igl.bbw also builds L, M, Q); meshing "
-                 "not counted; KKT = natural residual of the same QP, in weight units")
-    lines.append("both warmed up by one untimed solve of a small problem (loads compiled "
+        lines.append(f"tol {settings['tol']:g}; best of {settings['repeat']} run(s)")
+    lines.append("stbs s = BBWSolver(V, E) + solve (matrices, factorization, bounded "
+                 "solve); meshing not counted; KKT = natural residual of the QP, in weight "
+                 "units")
+    lines.append("warmed up by one untimed solve of a small problem (loads compiled "
                  "kernels, starts threads)")
-    cmp_rows = [r for r in rows if r["kind"] == "compare"]
-    if cmp_rows:
-        w = (9, 9, 12, 3, 22, 8, 9, 8, 8, 8, 8)
-        head = "  ".join(f"{c:<{w[i]}}" if i in (0, 10) else f"{c:>{w[i]}}"
+    solve_rows = [r for r in rows if r["kind"] == "solve"]
+    if solve_rows:
+        w = (9, 9, 12, 3, 8, 8, 8)
+        head = "  ".join(f"{c:<{w[i]}}" if i in (0, 6) else f"{c:>{w[i]}}"
                          for i, c in enumerate(COLUMNS))
         lines += ["", head.rstrip(), "-" * len(head.rstrip())]
-        for r in cmp_rows:
-            igl = _f(r["igl_s"], ".2f") if r["igl_status"] == "ok" else r["igl_status"]
+        for r in solve_rows:
             cells = (r["case"], f"{r['vertices']:,}", f"{r['elements']:,} {r['element_kind']}",
-                     str(r["functions"]), igl, f"{r['stbs_s']:.2f}",
-                     _f(r["speedup"], ".1f") + ("x" if r["speedup"] is not None else ""),
-                     _f(r["max_abs_dW"], ".1e"), f"{r['kkt_stbs']:.0e}",
-                     _f(r["kkt_igl"], ".0e"), r["backend"])
-            lines.append("  ".join(f"{c:<{w[i]}}" if i in (0, 10) else f"{c:>{w[i]}}"
+                     str(r["functions"]), f"{r['stbs_s']:.2f}", f"{r['kkt_stbs']:.0e}",
+                     r["backend"])
+            lines.append("  ".join(f"{c:<{w[i]}}" if i in (0, 6) else f"{c:>{w[i]}}"
                                    for i, c in enumerate(cells)).rstrip())
         lines.append("")
-        for r in cmp_rows:
-            extra = "" if r["converged"] else "; stbs did NOT reach tol on every function"
+        for r in solve_rows:
+            extra = "" if r["converged"] else "; did NOT reach tol on every function"
             lines.append(f"{r['case']}: {r['source']}; meshing {r['meshing_s']:.1f} s; "
                          f"{r['constrained']} constrained vertices{extra}")
+    return "\n".join(lines + format_rigs(rows))
+
+
+def format_rigs(rows: Sequence[dict]) -> list[str]:
+    """The report's lines for the rig rows among ``rows``: each stage's time, the total."""
+    lines = []
     for r in rows:
         if r["kind"] != "rig":
             continue
@@ -615,35 +502,19 @@ def format_table(rows: Sequence[dict], machine: dict | None = None,
                       f"{r['elements']:,} {r['element_kind']}, {r['bones']} bones "
                       f"({r['source']}; meshing {r['meshing_s']:.1f} s, not counted)"]
         for k, v in r["stages"].items():
-            lines.append(f"  {k:<24} {v:8.2f} s")
-        lines.append(f"  {'total':<24} {r['total_s']:8.2f} s   goal < {r['goal_s']:g} s: "
-                     f"{'met' if r['met'] else 'MISSED'}")
-    targets = check_targets(rows)
-    if targets:
-        lines += ["", "goals:"]
-        for t in targets:
-            lines.append(f"  [{t['status']}] {t['case']}: {t['target']} ({t['detail']})")
-    return "\n".join(lines)
+            lines.append(f"  {k:<30} {v:8.2f} s")
+        lines.append(f"  {'total (stbs.build_rig)':<30} {r['total_s']:8.2f} s")
+    return lines
 
 
 def machine_info() -> dict:
     """CPU model, core count, load and library versions (no heavy imports)."""
     from importlib.metadata import PackageNotFoundError, version
 
-    cpu = platform.processor() or platform.machine()
-    try:
-        with open("/proc/cpuinfo", encoding="utf-8") as f:
-            cpu = next((ln.split(":", 1)[1].strip() for ln in f
-                        if ln.startswith("model name")), cpu)
-    except OSError:
-        pass
-    info = {"cpu": cpu, "cpus": os.cpu_count(), "python": platform.python_version(),
-            "platform": platform.platform(), "numpy": np.__version__}
-    try:
-        info["load_average"] = [round(x, 2) for x in os.getloadavg()]
-    except (AttributeError, OSError):
-        info["load_average"] = None
-    for dist in ("scipy", "libigl", "cholespy", "scikit-sparse", "tetgen", "triangle"):
+    info = {"cpu": cpu_model(), "cpus": os.cpu_count(), "python": platform.python_version(),
+            "platform": platform_name(), "numpy": np.__version__,
+            "load_average": load_average()}
+    for dist in ("scipy", "cholespy", "scikit-sparse", "tetgen", "triangle"):
         try:
             info[dist] = version(dist)
         except PackageNotFoundError:
@@ -664,85 +535,68 @@ def _parse_cases(text: str) -> tuple[str, ...]:
     return tuple(dict.fromkeys(out))
 
 
-def _int_at_least(low: int) -> Callable[[str], int]:
-    def parse(text: str) -> int:
-        try:
-            v = int(text)
-        except ValueError:
-            v = None
-        if v is None or v < low:
-            raise argparse.ArgumentTypeError(f"expected a whole number >= {low}, got {text!r}")
-        return v
-    return parse
-
-
-def _positive_float(text: str) -> float:
-    try:
-        v = float(text)
-    except ValueError:
-        v = float("nan")
-    if not (np.isfinite(v) and v > 0):
-        raise argparse.ArgumentTypeError(f"expected a number > 0, got {text!r}")
-    return v
-
-
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Add ``stbs bench --weights``'s options to ``parser``."""
     parser.add_argument("--weights", action="store_true",
-                        help="time bounded biharmonic weights against igl.bbw (this mode)")
+                        help="time bounded biharmonic weights (this mode)")
     parser.add_argument("--cases", type=_parse_cases, default=DEFAULT_CASES,
                         help=f"comma-separated cases (listed below), or all (default "
                              f"{','.join(DEFAULT_CASES)})")
-    parser.add_argument("--functions", type=_int_at_least(1), default=3, metavar="M",
-                        help="weight functions (columns of bc) in the comparison cases "
+    parser.add_argument("--mesh-dir", metavar="DIR", default=None,
+                        help="a folder holding libigl's tutorial hand.mesh and hand.tgf: the "
+                             "3D cases then tetrahedralize the hand (needed by the hand case)")
+    parser.add_argument("--functions", type=int_at_least(1), default=3, metavar="M",
+                        help="weight functions (columns of bc) in the solve cases "
                              "(default 3; capped at the skeleton's bones); the rig case "
                              "uses every bone")
-    parser.add_argument("--igl-max-vertices", type=_int_at_least(0),
-                        default=DEFAULT_IGL_MAX_VERTICES, metavar="N",
-                        help=f"run igl.bbw only on meshes of at most N vertices (default "
-                             f"{DEFAULT_IGL_MAX_VERTICES}; it takes minutes beyond); 0: never")
-    parser.add_argument("--igl-timeout", type=_positive_float, default=None, metavar="S",
-                        help="run igl.bbw in a child process and stop it after S seconds "
-                             "(default: in this process, no limit)")
-    parser.add_argument("--repeat", type=_int_at_least(1), default=1,
-                        help="runs per solver and case; the best is reported (default 1)")
+    parser.add_argument("--repeat", type=int_at_least(1), default=1,
+                        help="runs per case; the best is reported (default 1)")
     parser.add_argument("--backend", choices=BACKENDS, default="auto",
-                        help="stbs's sparse Cholesky backend in the comparison cases (default "
+                        help="the sparse Cholesky backend in the solve cases (default "
                              "auto); the rig case uses the library's default")
-    parser.add_argument("--tol", type=_positive_float, default=DEFAULT_TOL,
-                        help=f"stbs's KKT tolerance, comparison and rig cases (default "
-                             f"{DEFAULT_TOL:g}: libigl's own residual is ~5e-7)")
+    parser.add_argument("--tol", type=positive_float, default=DEFAULT_TOL,
+                        help=f"KKT tolerance, solve and rig cases (default {DEFAULT_TOL:g})")
     parser.add_argument("--json", metavar="OUT.json", default=None,
-                        help="also write machine, settings, rows and goals as JSON "
+                        help="also write machine, settings and rows as JSON "
                              "(written to a temporary file, then renamed)")
 
 
-def _check_json_path(path: str | None) -> Path | None:
-    if path is None:
-        return None
-    out = Path(path)
-    if out.is_dir():
-        raise ValueError(f"--json: {out} is a folder, expected a file path")
-    parent = out.parent if str(out.parent) else Path(".")
-    if not parent.is_dir():
-        raise ValueError(f"--json: folder {parent} does not exist")
-    if not os.access(parent, os.W_OK):
-        raise ValueError(f"--json: folder {parent} is not writable")
-    return out
+def collect(args: argparse.Namespace, *, log: Log = quiet,
+            solve: Callable[..., dict] | None = None) -> dict:
+    """Run the cases of parsed ``args`` (:func:`add_arguments`).
 
+    ``solve(P, args, log)``, when given, replaces :func:`solve_case` for the solve cases
+    (a script that times a peer beside ours returns its own rows).
 
-def _jsonable(x):
-    if isinstance(x, dict):
-        return {k: _jsonable(v) for k, v in x.items()}
-    if isinstance(x, (list, tuple)):
-        return [_jsonable(v) for v in x]
-    if isinstance(x, (np.floating, float)):
-        return float(x) if np.isfinite(x) else None
-    if isinstance(x, np.integer):
-        return int(x)
-    if isinstance(x, np.bool_):
-        return bool(x)
-    return x
+    Returns
+    -------
+    dict
+        The JSON document: ``schema``, ``benchmark`` ("weights"), ``machine``,
+        ``settings``, ``rows``.
+
+    Raises
+    ------
+    ValueError
+        An unusable ``--mesh-dir``, or a case whose mesh needs it, before any solve.
+    """
+    meshes = _Meshes(args.mesh_dir, log)
+    if meshes.folder is None and "hand" in args.cases:
+        raise ValueError(_needs_mesh_dir("hand"))           # up front, before any solve
+    settings = {"cases": list(args.cases), "functions": args.functions,
+                "mesh_dir": None if args.mesh_dir is None else str(args.mesh_dir),
+                "repeat": args.repeat, "backend": args.backend, "tol": args.tol}
+    rows = []
+    for name in args.cases:
+        P = meshes.get(name)
+        if CASES[name].kind == "rig":
+            rows.append(rig_case(P, repeat=args.repeat, tol=args.tol, log=log))
+        elif solve is not None:
+            rows.append(solve(P, args, log))
+        else:
+            rows.append(solve_case(P, functions=args.functions, backend=args.backend,
+                                   repeat=args.repeat, tol=args.tol, log=log))
+    return {"schema": 1, "benchmark": "weights", "machine": machine_info(),
+            "settings": settings, "columns": list(COLUMNS), "rows": rows}
 
 
 def run(args: argparse.Namespace) -> int:
@@ -751,49 +605,34 @@ def run(args: argparse.Namespace) -> int:
     Raises
     ------
     ValueError
-        An unusable ``--json`` path (before anything runs), or a case whose data
-        is missing.
+        An unusable ``--json`` or ``--mesh-dir`` path, or a case whose mesh is missing,
+        before anything runs.
     """
-    out = _check_json_path(args.json)
+    out = check_json_path(args.json)
 
     def log(msg: str) -> None:
         print(f"stbs bench --weights: {msg}", file=sys.stderr, flush=True)
 
-    machine = machine_info()
-    settings = {"cases": list(args.cases), "functions": args.functions,
-                "igl_max_vertices": args.igl_max_vertices, "igl_timeout": args.igl_timeout,
-                "repeat": args.repeat, "backend": args.backend, "tol": args.tol,
-                "date": time.strftime("%Y-%m-%d")}
-    meshes = _Meshes(log)
-    rows = []
-    for name in args.cases:
-        P = meshes.get(name)
-        if CASES[name].kind == "rig":
-            rows.append(rig_case(P, repeat=args.repeat, tol=args.tol, log=log))
-        else:
-            rows.append(compare_case(P, functions=args.functions, backend=args.backend,
-                                     repeat=args.repeat, tol=args.tol,
-                                     igl_max_vertices=args.igl_max_vertices,
-                                     igl_timeout=args.igl_timeout, log=log))
-    print(format_table(rows, machine, settings))
+    doc = collect(args, log=log)
+    print(format_table(doc["rows"], doc["machine"], doc["settings"]))
     if out is not None:
-        from .io._atomic import atomic_open
-
-        doc = {"schema": 1, "benchmark": "weights", "machine": machine, "settings": settings,
-               "columns": list(COLUMNS), "rows": rows, "goals": check_targets(rows)}
-        with atomic_open(out, "w") as f:
-            f.write(json.dumps(_jsonable(doc), indent=1, allow_nan=False))
+        write_json(out, doc)
         log(f"wrote {out}")
     return 0
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """``python -m stbs.bench_weights [options]``: the same as ``stbs bench --weights``."""
-    from .cli import main as cli_main
-
-    argv = list(sys.argv[1:] if argv is None else argv)
-    return cli_main(["bench", "--weights", *[a for a in argv if a != "--weights"]])
-
-
-if __name__ == "__main__":
-    sys.exit(main())
+    """``python -m stbs.bench --weights [options]``: the same as ``stbs bench --weights``;
+    returns the exit status (2 and one line on stderr for a bad option)."""
+    p = argparse.ArgumentParser(prog="stbs bench --weights",
+                                description=__doc__.splitlines()[0],
+                                epilog="cases:\n" + "".join(
+                                    f"  {c.name:<10} {c.about}\n" for c in CASES.values()),
+                                formatter_class=argparse.RawDescriptionHelpFormatter)
+    add_arguments(p)
+    args = p.parse_args(argv)
+    try:
+        return run(args)
+    except (ValueError, OSError) as exc:
+        print(f"stbs bench --weights: error: {exc}", file=sys.stderr)
+        return 2

@@ -1,6 +1,6 @@
-"""``stbs bench``: delegates to :mod:`stbs.bench` (skinning throughput) or, with
-``--weights``, to :mod:`stbs.bench_weights` (BBW against igl.bbw), imported only when
-the command runs."""
+"""``stbs bench``: delegates to :mod:`stbs.bench.skinning` (skinning throughput) or, with
+``--weights``, to :mod:`stbs.bench.weights` (bounded biharmonic weights), imported only
+when the command runs."""
 
 from __future__ import annotations
 
@@ -8,37 +8,36 @@ import argparse
 import importlib
 from collections.abc import Sequence
 
+from .._optional import OptionalDependencyError, missing
 from ._errors import CommandError
 
 NAME = "bench"
-HELP = "throughput of the four skinning methods, or (--weights) BBW against igl.bbw"
+HELP = "throughput of the four skinning methods, or (--weights) of bounded biharmonic weights"
 EXAMPLE = "stbs bench"
 DESCRIPTION = ("Time lbs, dqs, stbs-lbs and stbs-dqs per vertex on this machine, beside "
-               "NumPy, SciPy and libigl peers (the options below come from stbs.bench). "
-               "With --weights: time bounded biharmonic weights against libigl's igl.bbw "
-               "instead (its own options: stbs bench --weights --help).")
+               "a NumPy and a SciPy LBS timed the same way (the options below come from "
+               "stbs.bench.skinning). With --weights: time bounded biharmonic weights and a "
+               "complete rig instead (its own options: stbs bench --weights --help).")
 EPILOG = (f"examples:\n  {EXAMPLE}\n  stbs bench --sizes 100k --dtype float32 --no-peers\n"
           "  stbs bench --weights --cases 2d-5k,3d-10k --json bbw.json")
 WEIGHTS_DESCRIPTION = (
-    "Time stbs's bounded biharmonic weights (BBWSolver construction + solve) against "
-    "libigl's igl.bbw on the same meshes and boundary conditions, and a complete 20-bone "
-    "rig (bone + endpoint weights) per stage (the options below come from "
-    "stbs.bench_weights).")
+    "Time stbs's bounded biharmonic weights (BBWSolver construction + solve) on built-in "
+    "meshes, and a complete 20-bone rig (bone + endpoint weights, stbs.build_rig) per stage "
+    "(the options below come from stbs.bench.weights).")
 WEIGHTS_EPILOG = ("examples:\n  stbs bench --weights\n"
-                  "  stbs bench --weights --cases 2d-small --igl-max-vertices 0\n"
-                  "  stbs bench --weights --cases 3d-50k --igl-max-vertices 100000 "
-                  "--igl-timeout 1800 --json bbw.json")
+                  "  stbs bench --weights --cases 2d-small,3d-10k --repeat 3\n"
+                  "  stbs bench --weights --cases hand,3d-50k --mesh-dir "
+                  "libigl-tutorial-data --json bbw.json")
 
 
-def _module(name: str = "stbs.bench"):
+def _module(name: str):
     try:
-        bench = importlib.import_module(name)
+        return importlib.import_module(name)
     except ModuleNotFoundError as exc:
         if exc.name != name:
             raise
         raise CommandError(f"the benchmark module {name} is missing from this installation "
                            "(reinstall stbs-skinning)") from None
-    return bench
 
 
 def _wants_weights(argv: Sequence[str]) -> bool:
@@ -51,9 +50,10 @@ def _wants_weights(argv: Sequence[str]) -> bool:
 def run_delegated(argv: Sequence[str], *, debug: bool,
                   parser_class: type[argparse.ArgumentParser]) -> int:
     """Parse ``argv`` with the benchmark module's ``add_arguments`` and call its ``run``:
-    :mod:`stbs.bench_weights` when ``--weights`` is given, else :mod:`stbs.bench`."""
+    :mod:`stbs.bench.weights` when ``--weights`` is given, else :mod:`stbs.bench.skinning`.
+    A module's ``requires(args)`` (optional import names) is checked first."""
     weights = _wants_weights(argv)
-    bench = _module("stbs.bench_weights" if weights else "stbs.bench")
+    bench = _module("stbs.bench.weights" if weights else "stbs.bench.skinning")
     epilog = EPILOG
     if weights:
         cases = getattr(bench, "CASES", {})
@@ -66,7 +66,7 @@ def run_delegated(argv: Sequence[str], *, debug: bool,
     bench.add_arguments(p)
     if not weights and not any("--weights" in a.option_strings for a in p._actions):
         p.add_argument("--weights", action="store_true",
-                       help="time bounded biharmonic weights against igl.bbw instead "
+                       help="time bounded biharmonic weights instead "
                             "(its options: stbs bench --weights --help)")
     if not any("--debug" in a.option_strings for a in p._actions):
         p.add_argument("--debug", action="store_true", default=argparse.SUPPRESS,
@@ -74,4 +74,8 @@ def run_delegated(argv: Sequence[str], *, debug: bool,
     args = p.parse_args(list(argv))
     if not hasattr(args, "debug"):
         args.debug = debug
+    need = getattr(bench, "requires", None)
+    advice = missing(need(args), f"stbs {NAME}") if need else None
+    if advice:
+        raise OptionalDependencyError(advice)
     return int(bench.run(args) or 0)
