@@ -15,7 +15,8 @@ from .endpoint import (
     projection,
 )
 from .heat import BoneHeatSolver, BoneHeatWarning, HeatReport, bone_heat, heat_joint_weights
-from .laplacian import cotmatrix, massmatrix
+from .laplacian import cotmatrix, element_measures, massmatrix
+from .qp import BoxQPResult, box_qp, kkt_residual
 from .spline import SplineFilter, spline_filter
 
 __all__ = [
@@ -24,5 +25,6 @@ __all__ = [
     "projection", "BoneHeatSolver", "BoneHeatWarning", "HeatReport", "bone_heat",
     "heat_joint_weights", "SplineFilter", "spline_filter", "BONE_METHODS",
     "BBWConvergenceWarning", "BBWReport", "BBWSolver", "bbw", "bone_weights",
-    "boundary_conditions", "cotmatrix", "massmatrix",
+    "boundary_conditions", "cotmatrix", "massmatrix", "element_measures", "box_qp",
+    "kkt_residual", "BoxQPResult",
 ]

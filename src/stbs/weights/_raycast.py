@@ -187,11 +187,11 @@ class _EmbreeScene:
 
 def _boundary_edges(F: np.ndarray) -> np.ndarray:
     """(e, 2) edges used by exactly one triangle, oriented as in that triangle."""
-    E = np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]])
+    edges = np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]])
     from ..geometry import unique_rows
 
-    _, _, inv, cnt = unique_rows(np.sort(E, axis=1))
-    return E[cnt[inv] == 1]
+    _, _, inv, cnt = unique_rows(np.sort(edges, axis=1))
+    return edges[cnt[inv] == 1]
 
 
 def _cross2(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -202,9 +202,9 @@ class _Edges2D:
     """Segment crossings against the boundary edges of a 2D triangle mesh."""
 
     def __init__(self, V: np.ndarray, F: np.ndarray):
-        BE = _boundary_edges(F)
-        self.p = V[BE[:, 0]]
-        self.r = V[BE[:, 1]] - self.p
+        edges = _boundary_edges(F)
+        self.p = V[edges[:, 0]]
+        self.r = V[edges[:, 1]] - self.p
 
     def occluded(self, O: np.ndarray, D: np.ndarray) -> np.ndarray:
         out = np.zeros(len(O), dtype=bool)

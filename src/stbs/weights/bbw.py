@@ -61,7 +61,7 @@ from ..skeleton import Skeleton
 from . import _cholmod
 from ._cholesky import Factor
 from ._deprecate import renamed
-from .laplacian import cotmatrix, massmatrix
+from .laplacian import MASS_TYPES, cotmatrix, massmatrix
 from .qp import DualActiveSet, _Green, _Schur
 
 __all__ = ["BBWSolver", "BBWReport", "BBWConvergenceWarning", "bbw", "bone_weights",
@@ -280,6 +280,7 @@ class BBWSolver:
             raise ValueError(f"Ele must have shape (f, 3) (triangles) or (t, 4) (tetrahedra) "
                              f"with at least one element, got {Ele.shape}")
         _checks.choice("backend", backend, ("auto", "cholmod", "cholespy", "scipy"))
+        _checks.choice("mass", mass, MASS_TYPES)
         self.V, self.Ele, self.backend = V, Ele, backend
         if blas_threads is not None and int(blas_threads) < 1:
             raise ValueError(f"blas_threads must be >= 1 or None, got {blas_threads}")

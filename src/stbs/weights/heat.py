@@ -142,8 +142,21 @@ class BoneHeatSolver:
 
     Examples
     --------
+    Two bones along the middle of a 4 x 2 grid of squares (a 2D shape):
+
+    >>> import numpy as np
+    >>> import stbs
+    >>> x, y = np.meshgrid(np.arange(5.0), np.arange(3.0), indexing="ij")
+    >>> V = np.c_[x.ravel(), y.ravel()]           # vertex 3 i + j at (i, j)
+    >>> q = np.array([3 * i + j for i in range(4) for j in range(2)])
+    >>> F = np.r_[np.c_[q, q + 3, q + 4], np.c_[q, q + 4, q + 1]]
+    >>> sk = stbs.Skeleton([[0.5, 1.0], [2.0, 1.0], [3.5, 1.0]], [[0, 1], [1, 2]])
     >>> solver = BoneHeatSolver(V, F)
     >>> W, report = solver.solve(sk.A, sk.B, labels=[f"bone {i}" for i in range(sk.n_bones)])
+    >>> W[[4, 7, 10]].round(6)                    # on bone 0, at the joint, on bone 1
+    array([[1. , 0. ],
+           [0.5, 0.5],
+           [0. , 1. ]])
     """
 
     def __init__(self, V, F, *, backend: _raycast.RayBackend = "auto",
@@ -378,12 +391,12 @@ def _inward_normals(V: np.ndarray, F: np.ndarray) -> np.ndarray:
         signed = ((V[F[:, 1], 0] - V[F[:, 0], 0]) * (V[F[:, 2], 1] - V[F[:, 0], 1])
                   - (V[F[:, 1], 1] - V[F[:, 0], 1]) * (V[F[:, 2], 0] - V[F[:, 0], 0]))
         Fo = np.where((signed < 0)[:, None], F[:, ::-1], F)
-        BE = _raycast._boundary_edges(Fo)
-        d = V[BE[:, 1]] - V[BE[:, 0]]
+        edges = _raycast._boundary_edges(Fo)
+        d = V[edges[:, 1]] - V[edges[:, 0]]
         inward = np.stack([-d[:, 1], d[:, 0]], axis=1)   # left of a CCW edge
         N = np.zeros((n, 2))
-        np.add.at(N, BE[:, 0], inward)
-        np.add.at(N, BE[:, 1], inward)
+        np.add.at(N, edges[:, 0], inward)
+        np.add.at(N, edges[:, 1], inward)
     norm = np.linalg.norm(N, axis=1)
     return np.divide(N, norm[:, None], out=np.zeros_like(N), where=norm[:, None] > 0)
 

@@ -316,10 +316,10 @@ class DualActiveSet:
         chunk = solve_chunk(self.nu)
         for i in range(0, verts.size, chunk):
             cv = verts[i:i + chunk]
-            E = np.zeros((self.nu, cv.size), order="F")     # CHOLMOD's layout: no copy
-            E[cv, np.arange(cv.size)] = 1.0
+            unit = np.zeros((self.nu, cv.size), order="F")     # CHOLMOD's layout: no copy
+            unit[cv, np.arange(cv.size)] = 1.0
             self.n_solves += cv.size
-            yield cv, self.solve(E)
+            yield cv, self.solve(unit)
 
     def candidates(self, v: np.ndarray, excluded: np.ndarray) -> np.ndarray:
         """Variables to constrain next: violated (``v > tol / 4``) local maxima of the

@@ -44,8 +44,10 @@ class SplineFilter:
 
     Examples
     --------
+    >>> import numpy as np
     >>> f = SplineFilter([(0.25, 0.6), (0.5, 0.9)])
-    >>> E2 = f(E)
+    >>> f(np.array([[0.0], [0.25], [0.5], [1.0]]))[:, 0]    # E (n, b) -> f(E)
+    array([0. , 0.6, 0.9, 1. ])
     """
 
     def __init__(self, points=None):
