@@ -34,10 +34,11 @@ def _module(name: str):
     try:
         return importlib.import_module(name)
     except ModuleNotFoundError as exc:
-        if exc.name != name:
+        # the module itself or the package holding it; another missing import is a bug
+        if exc.name is None or not (name == exc.name or name.startswith(exc.name + ".")):
             raise
-        raise CommandError(f"the benchmark module {name} is missing from this installation "
-                           "(reinstall stbs-skinning)") from None
+        raise CommandError(f"the benchmark module {exc.name} is missing from this "
+                           "installation (reinstall stbs-skinning)") from None
 
 
 def _wants_weights(argv: Sequence[str]) -> bool:
@@ -50,10 +51,12 @@ def _wants_weights(argv: Sequence[str]) -> bool:
 def run_delegated(argv: Sequence[str], *, debug: bool,
                   parser_class: type[argparse.ArgumentParser]) -> int:
     """Parse ``argv`` with the benchmark module's ``add_arguments`` and call its ``run``:
-    :mod:`stbs.bench.weights` when ``--weights`` is given, else :mod:`stbs.bench.skinning`.
+    :mod:`stbs.bench.weights` when ``--weights`` is given, else :mod:`stbs.bench` (the
+    names of :mod:`stbs.bench.skinning`).
     A module's ``requires(args)`` (optional import names) is checked first."""
     weights = _wants_weights(argv)
-    bench = _module("stbs.bench.weights" if weights else "stbs.bench.skinning")
+    # stbs.bench is the skinning benchmark's API (stbs.bench.skinning's names)
+    bench = _module("stbs.bench.weights" if weights else "stbs.bench")
     epilog = EPILOG
     if weights:
         cases = getattr(bench, "CASES", {})
