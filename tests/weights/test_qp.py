@@ -38,6 +38,19 @@ def test_2d_coupled_one_bound_active():
     np.testing.assert_allclose(Q @ res.x + c, [0.0, 1.5], atol=1e-15)
 
 
+def test_3d_chain_both_bounds_and_a_free_middle():
+    # Q the 1D Laplacian [[2,-1,0],[-1,2,-1],[0,-1,2]], c = (-3, 0, 3): unconstrained
+    # Q^-1 (3, 0, -3) = (1.5, 0, -1.5). With x0 = 1 and x2 = 0 the middle row gives
+    # 2 x1 - 1 = 0, x1 = 1/2; the gradients g0 = 2 - 1/2 - 3 = -3/2 <= 0 (upper bound)
+    # and g2 = -1/2 + 3 = 5/2 >= 0 (lower bound) have the right signs: optimal.
+    Q = sp.csr_array(np.array([[2.0, -1, 0], [-1, 2, -1], [0, -1, 2]]))
+    c = np.array([-3.0, 0.0, 3.0])
+    res = box_qp(Q, c)
+    np.testing.assert_allclose(res.x, [1.0, 0.5, 0.0], atol=1e-15)
+    assert res.x[0] == 1.0 and res.x[2] == 0.0 and res.n_constraints.tolist() == [2]
+    np.testing.assert_allclose(Q @ res.x + c, [-1.5, 0.0, 2.5], atol=1e-15)
+
+
 def test_fixed_variables_and_an_upper_bound():
     # The 1D Laplacian chain with x0 = x2 = 1 held: x1 would be (x0 + x2) / 2 = 1, but hi = 0.8.
     Q = sp.csr_array(np.array([[2.0, -1, 0], [-1, 2, -1], [0, -1, 2]]))
