@@ -225,7 +225,8 @@ def test_json_is_written_atomically_and_parses(tmp_path, monkeypatch, small_bw, 
     assert code == 0
     assert sorted(p.name for p in tmp_path.iterdir()) == ["bench.json"]  # no temp file left
     doc = json.loads(out.read_text())
-    assert doc["schema"] == 1 and doc["settings"]["stat"] == "median"
+    assert doc["schema"] == 1 and doc["benchmark"] == "skinning"
+    assert doc["settings"]["stat"] == "median"
     assert doc["settings"]["methods"] == ["lbs", "stbs-dqs"]
     assert {r["method"] for r in doc["rows"]} == {"lbs", "stbs-dqs"}
     assert doc["bandwidth"]["gbs"] > 0 and doc["machine"]["cpus"] >= 1

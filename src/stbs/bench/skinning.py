@@ -672,7 +672,8 @@ def collect(args: argparse.Namespace, *, extra_peers: Sequence[Peer] = (),
     Returns
     -------
     dict
-        The JSON document: ``schema``, ``machine``, ``bandwidth``, ``settings``, ``rows``.
+        The JSON document: ``schema``, ``benchmark`` ("skinning"), ``machine``,
+        ``bandwidth``, ``settings``, ``rows``.
 
     Raises
     ------
@@ -688,7 +689,7 @@ def collect(args: argparse.Namespace, *, extra_peers: Sequence[Peer] = (),
                      peers=not args.no_peers, seed=args.seed, methods=args.methods,
                      bandwidth=bw, extra_peers=extra_peers, log=log)
     machine["peak_rss_bytes"] = peak_rss_bytes()
-    return {"schema": 1, "machine": machine, "bandwidth": bw,
+    return {"schema": 1, "benchmark": "skinning", "machine": machine, "bandwidth": bw,
             "settings": {"sizes": list(sizes), "bones": bones, "influences": influences,
                          "dtypes": list(dtypes), "methods": list(args.methods),
                          "repeats": args.repeats, "seed": args.seed, "warmup": WARMUP,
