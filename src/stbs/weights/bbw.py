@@ -692,6 +692,12 @@ class _Run:
         Stationarity ``K x_j + c_j - mu_j + lam = 0`` with ``sum_j x_j = 1`` gives
         ``lam = mean_j mu_j``, so ``x_j = x_u,j + K^-1 (mu_j - mean_l mu_l)`` and the
         dual system couples the functions through ``(delta_jl - 1/m) K^-1``.
+
+        That elimination uses BBW's own structure: constants are in the null space of
+        ``Q`` (``L 1 = 0``) and the rows of ``bc`` sum to 1, so ``K 1 + sum_j c_j = 0``
+        and the unconstrained ``x_u`` already sums to 1. It is not a general
+        simplex-constrained QP, which is why it lives here and not in :mod:`.qp`
+        (whose pieces it uses).
         """
         nu, m = Xu.shape
         qp = self._qp()
