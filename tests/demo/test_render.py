@@ -16,6 +16,7 @@ from PIL import Image  # noqa: E402  (Pillow comes with matplotlib)
 from rigs import icosphere  # noqa: E402
 from stbs.demo import render  # noqa: E402
 from stbs.demo.render import (  # noqa: E402
+    MASK_COLOR,
     METHOD_COLORS,
     Camera,
     Panel,
@@ -224,6 +225,36 @@ def test_flat_2d_meshes_plain_and_with_scalars():
     assert left[2] > left[1] and right[0] > right[2]   # purple to yellow along x
     assert Panel(V, F).flat
     assert not Panel(np.hstack([V, np.zeros((len(V), 1))]), F, camera=Camera()).flat
+
+
+def test_mask_greys_out_scalars_flat_and_solid():
+    V, F = grid2d(8, 4)
+    s = V[:, 0]
+    keep = V[:, 0] > 0.5
+    p = Panel(V, F, scalars=s, cmap="Reds", mask=keep)
+    c = p.vertex_colors()
+    assert np.all(c[~keep] == MASK_COLOR) and not np.any(np.all(c[keep] == MASK_COLOR, axis=1))
+    grey = np.round(255 * np.array(MASK_COLOR))
+    img = draw_panels([p], panel_size=SIZE)
+    ii, jj = np.nonzero(not_white(img))
+    row = rgb(img)[int(ii.mean())]
+    left, right = row[jj.min() + 3], row[jj.max() - 3]
+    assert np.abs(left - grey).max() <= 3 and right[0] > right[2] + 40   # grey | red
+    full = draw_panels([Panel(V, F, scalars=s, cmap="Reds")], panel_size=SIZE)
+    assert rgb(full)[int(ii.mean()), jj.min() + 3][0] > 200   # without a mask: white-red
+    # Solid: the masked side of a sphere is grey under the lighting (no hue).
+    Vs, Fs = SPHERE
+    img = draw_panels([Panel(Vs, Fs, scalars=Vs[:, 0], cmap="Reds", mask=Vs[:, 0] > 0)],
+                      panel_size=SIZE, camera=Camera(azimuth=-90.0, elevation=0.0))
+    ii, jj = np.nonzero(not_white(img))
+    left = rgb(img)[int(ii.mean()), jj.min() + 12]
+    assert np.ptp(left) <= 3
+    with pytest.raises(ValueError, match="mask needs scalars"):
+        Panel(V, F, mask=keep)
+    with pytest.raises(ValueError, match=r"mask must be a \(45,\) bool array"):
+        Panel(V, F, scalars=s, mask=keep.astype(int))
+    with pytest.raises(ValueError, match="textured panel"):
+        Panel(V, F, texture=np.zeros((4, 4, 3), np.uint8), uv=V).vertex_colors()
 
 
 def test_open_mesh_is_drawn_from_behind():

@@ -2,8 +2,9 @@
 
 ``run_demo(out_dir)`` is what ``stbs demo`` runs. :mod:`stbs.demo.figures` (Figs. 2,
 3) and :mod:`stbs.demo.paper` (Figs. 4-12) have one function per figure returning
-meshes, numbers and what to draw; :mod:`stbs.demo.shapes` and :mod:`stbs.demo.models`
-build the shapes; :mod:`stbs.demo.render` draws headless PNG/GIF with matplotlib and
+meshes, numbers and what to draw; the shapes come from :mod:`stbs.shapes` (the
+library's generators) and :mod:`stbs.demo.models` (the demo's own models, built
+from them); :mod:`stbs.demo.render` draws headless PNG/GIF with matplotlib and
 :mod:`stbs.demo.gallery` writes ``index.html``.
 """
 

@@ -13,6 +13,7 @@ from __future__ import annotations
 import numpy as np
 
 from .. import transforms as tf
+from ..geometry import triangle_areas
 from ..pose import Pose, forward_kinematics
 from ..skeleton import Skeleton
 from ..skinning import deform
@@ -253,12 +254,21 @@ def fig4_leg(quick: bool = False, *, bend: float = 50.0, sigma: float = 1.5) -> 
 
 
 # ---------------------------------------------------------------------- Fig. 6
+#: Fig. 6 shows a bone's endpoint weights where its bone weight is at least this: bone
+#: heat weights decay but never reach 0, and below this the bone moves a point by less
+#: than 5% of its motion, so its endpoint weights hardly matter there (grey).
+FIG6_SUPPORT = 0.05
+
+
 def fig6_character(quick: bool = False) -> Figure:
     """Fig. 6: a character's bone weights as colours and endpoint weights as heat maps.
 
     Bone weights by bone heat; endpoint weights by heat with the joints as points
-    (eq. 7). Number: how many bones' endpoint weights reach 0 at the bone's start
-    and 1 at its end (all of them should).
+    (eq. 7). Each endpoint-weight panel colours ``e_i`` only where the bone's weight
+    ``w_i`` is at least :data:`FIG6_SUPPORT` (the bone's region), grey elsewhere, as
+    in the paper. Numbers: the mean ``e`` at the surface vertex nearest each bone's
+    start (should be low) and end (high), and the share of the surface inside the
+    shown bones' regions.
     """
     m = models.character(quick=quick)
     V, F, sk = m.V, m.F, m.sk
@@ -272,24 +282,33 @@ def fig6_character(quick: bool = False) -> Figure:
     panels = [Panel(V, F, title="bone weights", colors=np.clip(colors, 0, 1), C=sk.C, BE=sk.BE)]
     show = [i for i, nm in enumerate(sk.names) if nm in
             ("spine", "neck", "upper_arm_l", "forearm_l", "thigh_r", "shin_r")]
+    region = W >= FIG6_SUPPORT
     for i in show:
         panels.append(Panel(V, F, title=f"e: {sk.names[i]}", scalars=E[:, i], cmap="Reds",
-                            C=sk.C, BE=sk.BE[[i]]))
+                            mask=region[:, i], C=sk.C, BE=sk.BE[[i]],
+                            subtitle=f"w \u2265 {FIG6_SUPPORT:g} on {region[:, i].mean():.0%} "
+                                     "of the surface"))
     near_a = np.array([E[np.argmin(np.linalg.norm(V - sk.A[i], axis=1)), i]
                        for i in range(sk.n_bones)])
     near_b = np.array([E[np.argmin(np.linalg.norm(V - sk.B[i], axis=1)), i]
                        for i in range(sk.n_bones)])
     fig.numbers["heat"] = {"bones": float(sk.n_bones),
-                           "start": float(near_a.mean()), "end": float(near_b.mean())}
+                           "start": float(near_a.mean()), "end": float(near_b.mean()),
+                           "region": float(region[:, show].mean())}
     fig.columns = [("bones", "bones", "{:.0f}"),
                    ("start", "mean e near starts", "{:.2f}"),
-                   ("end", "mean e near ends", "{:.2f}")]
-    fig.expected = {"bones": "-", "start": "low (e = 0 at a)", "end": "high (e = 1 at b)"}
+                   ("end", "mean e near ends", "{:.2f}"),
+                   ("region", "shown region (mean)", "{:.2f}")]
+    fig.expected = {"bones": "-", "start": "low (e = 0 at a)", "end": "high (e = 1 at b)",
+                    "region": "well below 1 (each bone's own region, grey elsewhere)"}
     fig.notes = ["bone heat bone weights; heat endpoint weights (joints as points, eq. 7); "
-                 "e at the surface vertex nearest each joint"]
+                 "e at the surface vertex nearest each joint; e shown where w >= "
+                 f"{FIG6_SUPPORT:g}"]
     fig.caption = ("Fig. 6. Left: each bone has a colour and every point shows the "
                    "weighted mix of its bones' colours. Right: endpoint weights of six bones "
-                   "(white 0 at the bone's start, red 1 at its end), computed automatically.")
+                   "(white 0 at the bone's start, red 1 at its end), computed automatically, "
+                   f"shown where the bone's weight is at least {FIG6_SUPPORT:g} (grey "
+                   "elsewhere: there the bone hardly moves the surface).")
     fig.pictures = {"fig6_character.png": dict(panels=panels, ncols=4, camera=cam)}
     return fig
 
@@ -411,13 +430,30 @@ def fig8_box_twist(quick: bool = False, *, degrees: float = 360.0) -> Figure:
 
 
 # ---------------------------------------------------------------------- Fig. 10
+def _stripes(V, axis, origin, *, count: int = 10) -> np.ndarray:
+    """Per-vertex colours (n, 3): ``count`` dark stripes running along ``axis`` on skin,
+    by each point's rest angle about the axis, so that a twist turns them into helices."""
+    u = axis / np.linalg.norm(axis)
+    ref = np.cross(u, [0.0, 0.0, 1.0]) if abs(u[2]) < 0.9 else np.cross(u, [1.0, 0.0, 0.0])
+    ref /= np.linalg.norm(ref)
+    d = V - origin
+    phi = np.arctan2(d @ np.cross(u, ref), d @ ref)
+    # A smooth band (a few triangles wide on these meshes), dark at its middle.
+    band = np.clip(1.6 * np.cos(count * phi) - 0.6, 0.0, 1.0)
+    skin, ink = np.array([0.91, 0.72, 0.6]), np.array([0.36, 0.2, 0.17])
+    return skin + band[:, None] * (ink - skin)
+
+
 def fig10_torso(quick: bool = False, *, degrees: float = 90.0) -> Figure:
     """Fig. 10: a torso twisted by one bone, identity vs spline-filtered endpoint weights.
 
-    Endpoint weights: projection along the spine, then a monotone spline filter
-    ``f`` through (0.15, 0.05) and (0.6, 0.9) that moves the twist down into the abdomen. Number per
-    variant: the share of the twist that happens in the abdomen (twist at the top of
-    the abdomen minus at its bottom, over the twist at the chest's top).
+    Endpoint weights: projection along the spine, then a monotone spline filter ``f``
+    through (0.15, 0.05) and (0.6, 0.9) that moves the twist down into the abdomen.
+    The surface carries stripes along the spine (drawn at rest), so the twist shows
+    as their turn. Numbers per variant: the share of the twist that happens in the
+    abdomen (twist at the top of the abdomen minus at its bottom, over the twist at
+    the chest's top), the share left to the chest, and how far the chest's lower
+    end is turned (degrees).
     """
     from ..weights.spline import SplineFilter
 
@@ -432,36 +468,47 @@ def fig10_torso(quick: bool = False, *, degrees: float = 90.0) -> Figure:
     fig = Figure("torso", f"Fig. 10: a torso twisted {degrees:g} deg by one bone, identity "
                  "vs spline-filtered endpoint weights", V, F, sk, W, E0)
     fig.key = "fig10"
-    panels = []
+    stripes = _stripes(V, axis, sk.C[0])
+    ys = np.linspace(float(V[:, 1].min()) + 0.05, float(V[:, 1].max()) - 0.05, 60)
 
     def twist_at(U, y):
         idx = np.flatnonzero(np.abs(V[:, 1] - y) < 0.04)
         return float(np.degrees(section_twist(V[idx], U[idx], axis)))
 
+    panels, curves = [], {}
     for name, E in (("identity", E0), ("spline", f(E0))):
         U = deform(V, sk, pose, W, E, method="stbs-dqs")
         fig.U[name] = U
         total = twist_at(U, float(sk.B[0, 1]))
         share = (twist_at(U, hi) - twist_at(U, lo)) / total
-        fig.numbers[name] = {"abdomen": share, "chest": 1.0 - twist_at(U, hi) / total}
-        panels.append(Panel(U, F, title=f"{name} endpoint weights", scalars=E[:, 0],
-                            cmap="Reds", C=pose.joints(), BE=sk.BE,
-                            subtitle=f"abdomen share {share:.2f}"))
-    ys = np.linspace(0.0, 1.0, 101)
-    panels.append(PlotPanel(title="spline filter f(e)", x=ys,
-                            ys={"identity": ys, "spline": f(ys)}, xlabel="e",
-                            ylabel="f(e)"))
+        fig.numbers[name] = {"abdomen": share, "chest": 1.0 - twist_at(U, hi) / total,
+                             "turn": twist_at(U, hi)}
+        curves[name] = np.array([twist_at(U, y) for y in ys])
+        panels.append(Panel(U, F, title=f"{name} endpoint weights", colors=stripes,
+                            C=pose.joints(),  # no bone drawn: it would hide the stripes
+                            subtitle=f"abdomen share {share:.2f}, chest "
+                                     f"{fig.numbers[name]['chest']:.2f}"))
+    panels.append(PlotPanel(title="twist along the spine", x=ys, ys=curves,
+                            xlabel=f"height y (abdomen: {lo:g} to {hi:g})",
+                            ylabel="twist (deg)"))
+    e = np.linspace(0.0, 1.0, 101)
+    panels.append(PlotPanel(title="spline filter f(e)", x=e, ys={"identity": e, "spline": f(e)},
+                            xlabel="e", ylabel="f(e)"))
     fig.columns = [("abdomen", "twist share abdomen", "{:.2f}"),
-                   ("chest", "twist share chest", "{:.2f}")]
+                   ("chest", "twist share chest", "{:.2f}"),
+                   ("turn", "chest's lower end (deg)", "{:.0f}")]
     fig.expected = {"abdomen": "spline > identity (the twist moves into the abdomen)",
-                    "chest": "spline < identity"}
+                    "chest": "spline < identity",
+                    "turn": f"spline nearer {degrees:g} (the chest turns as one piece)"}
     fig.notes = ["stbs-dqs; projection endpoint weights along the spine, then f through "
-                 "(0.15, 0.05), (0.6, 0.9)"]
-    fig.caption = ("Fig. 10. One spine bone twisted at the chest. With the endpoint weights "
-                   "as they are, the twist grows evenly up the body; a monotone spline filter "
-                   "on them moves it down into the abdomen, as a body twists.")
-    fig.pictures = {"fig10_torso.png": dict(panels=panels, ncols=3,
-                                           camera=Camera(azimuth=-30.0, elevation=35.0))}
+                 "(0.15, 0.05), (0.6, 0.9); stripes drawn along the spine at rest"]
+    fig.caption = ("Fig. 10. One spine bone twisted at the chest; the stripes ran straight "
+                   "up the body at rest. With the endpoint weights as they are, the twist "
+                   "grows evenly up the body and the chest is wrung too; a monotone spline "
+                   "filter on them moves it down into the abdomen, and the chest turns as "
+                   "one piece (its stripes stay straight), as a body twists.")
+    fig.pictures = {"fig10_torso.png": dict(panels=panels, ncols=2,
+                                           camera=Camera(azimuth=-90.0, elevation=10.0))}
     return fig
 
 
@@ -471,8 +518,9 @@ def fig12_picture(quick: bool = False) -> Figure:
 
     2D BBW bone weights and BBW endpoint weights; three poses from dragged joint
     positions (``Pose.from_joints``: stretches come from the new bone lengths),
-    stbs-dqs, drawn with the picture as texture. Number: the smallest triangle area
-    ratio (no triangle flips: > 0).
+    stbs-dqs, drawn with the picture as texture. Number: the smallest ratio of a
+    triangle's posed area to its rest area over the poses (no triangle flips or
+    collapses: well above 0).
     """
     from ..weights.bbw import bone_weights
 
@@ -486,9 +534,15 @@ def fig12_picture(quick: bool = False) -> Figure:
     fig.key = "fig12"
     poses = {"rest": Pose.rest(sk)}
     span = float(np.ptp(sk.C, axis=0).max())
-    drags = {   # joint name -> offset (in units of the skeleton's span)
+    # Bone name -> offset of its end joint (in units of the skeleton's span). Drags that
+    # turn bones rather than push joints into the body: the head tilts by 16 degrees
+    # (dragged further, it swings into the shoulder, where the head and arm weights
+    # meet, and flattens the triangles there), the hand swings down about the elbow
+    # (pulled towards the body as well, the forearm shortens to 0.78 while it bends and
+    # folds the inside of the elbow).
+    drags = {
         "wave": {"forearm_r": (0.10, 0.22), "upper_arm_r": (0.02, 0.10)},
-        "lean": {"head": (0.14, -0.03), "forearm_l": (0.06, -0.14)},
+        "lean": {"head": (0.10, 0.0), "forearm_l": (0.0, -0.14)},
         "stretch": {"head": (0.0, 0.12), "shin_l": (-0.05, -0.10), "shin_r": (0.05, -0.10),
                     "forearm_l": (-0.10, 0.0), "forearm_r": (0.10, 0.0)},
     }
@@ -504,21 +558,19 @@ def fig12_picture(quick: bool = False) -> Figure:
                 stack += [int(c) for c in sk.BE[sk.BE[:, 0] == j, 1]]
         poses[label] = Pose.from_joints(sk, Cp)
 
-    def area(X):
-        a, b, c = X[F[:, 0]], X[F[:, 1]], X[F[:, 2]]
-        return 0.5 * ((b - a)[:, 0] * (c - a)[:, 1] - (b - a)[:, 1] * (c - a)[:, 0])
-
-    a0 = area(V)
+    a0 = triangle_areas(V, F)
     panels = []
     worst = np.inf
     for label, p in poses.items():
         U = deform(V, sk, p, W, E, method="stbs-dqs")[:, :2]
         fig.U[label] = U
-        worst = min(worst, float((area(U) / a0).min()))
-        panels.append(Panel(U, F, title=label, texture=tex, uv=uv, C=p.joints(), BE=sk.BE))
+        ratio = float((triangle_areas(U, F) / a0).min())
+        worst = min(worst, ratio)
+        panels.append(Panel(U, F, title=label, texture=tex, uv=uv, C=p.joints(), BE=sk.BE,
+                            subtitle=f"smallest triangle keeps {ratio:.2f} of its area"))
     fig.numbers["stbs-dqs"] = {"area": worst}
     fig.columns = [("area", "min triangle area ratio", "{:.2f}")]
-    fig.expected = {"area": "> 0 (no triangle turns over)"}
+    fig.expected = {"area": "well above 0 (no triangle turns over or collapses)"}
     fig.notes = ["2D BBW bone and endpoint weights; poses from dragged joints"]
     fig.caption = ("Fig. 12. A picture drawn in code, its outline traced and meshed with the "
                    "skeleton inside, then posed by dragging joints: bones bend, stretch and "

@@ -39,7 +39,7 @@ from ..geometry import face_normals, unique_edges
 from ..io import atomic_open, atomic_save
 
 __all__ = ["Camera", "Panel", "PlotPanel", "render_panels", "render_animation",
-           "draw_panels", "METHOD_COLORS", "MATPLOTLIB_MISSING"]
+           "draw_panels", "METHOD_COLORS", "MASK_COLOR", "MATPLOTLIB_MISSING"]
 
 #: The message of the ImportError raised when matplotlib is missing.
 MATPLOTLIB_MISSING = "the demo's pictures need matplotlib: pip install 'stbs-skinning[demo]'"
@@ -51,6 +51,7 @@ METHOD_COLORS = {"lbs": "#d1495b", "dqs": "#edae49", "stbs-lbs": "#00798c",
 _BACKGROUND = (1.0, 1.0, 1.0)
 _SOLID_COLOR = "#a9bcd0"      # default surface colour: a light steel blue
 _FLAT_COLOR = "#c4d3e2"
+MASK_COLOR = (0.74, 0.74, 0.74)  # where a panel's scalars are masked out: a neutral grey
 _BONE_FILL = "#fbfbf7"
 _BONE_EDGE = "#1d1d1f"
 _JOINT_FILL = "#e4572e"
@@ -245,6 +246,10 @@ class Panel:
     isolines : int or sequence of float
         Iso-lines of ``scalars``: a count of evenly spaced interior levels, or the
         levels themselves. 0 (default) draws none.
+    mask : (n,) bool, optional
+        With ``scalars``: the vertices that show them; the others are drawn in
+        :data:`MASK_COLOR` (grey), e.g. a bone's endpoint weights only where its bone
+        weight is non-zero. Default: every vertex.
     colors : (n, 3) or (n, 4) float in [0, 1] or uint8, optional
         Per-vertex RGB(A) colours.
     texture : (H, W, 3) or (H, W, 4) uint8 or float in [0, 1], optional
@@ -294,6 +299,7 @@ class Panel:
     vmin: float = 0.0
     vmax: float = 1.0
     isolines: int | Sequence[float] = 0
+    mask: Any = None
     colors: Any = None
     texture: Any = None
     uv: Any = None
@@ -333,6 +339,14 @@ class Panel:
         self.isolines = self._levels(self.isolines)
         if len(self.isolines) and self.scalars is None:
             raise ValueError("isolines need scalars, got scalars=None")
+        if self.mask is not None:
+            m = np.asarray(self.mask)
+            if self.scalars is None:
+                raise ValueError("mask needs scalars, got scalars=None")
+            if m.dtype != bool or m.shape != (n,):
+                raise ValueError(f"mask must be a ({n},) bool array, one per row of V, got "
+                                 f"{m.dtype} of shape {m.shape}")
+            self.mask = m
         if not isinstance(self.cmap, str):
             raise ValueError(f"cmap must be a matplotlib colour map name, got {self.cmap!r}")
         if self.colors is not None:
@@ -402,6 +416,28 @@ class Panel:
         if a.shape[2] == 3:
             a = np.concatenate([a, np.ones(a.shape[:2] + (1,), np.float32)], axis=2)
         return a
+
+    def vertex_colors(self) -> np.ndarray:
+        """The colour (n, 3) float64 in [0, 1] each vertex gets before lighting.
+
+        ``scalars`` through ``cmap`` (:data:`MASK_COLOR` where ``mask`` is False),
+        ``colors``, or the base ``color``; needs matplotlib. Not for textured panels.
+        """
+        mpl = _mpl()
+        n = self.V.shape[0]
+        if self.texture is not None:
+            raise ValueError("vertex_colors: a textured panel's colours come from its "
+                             "texture, not its vertices")
+        if self.scalars is not None:
+            t = np.clip((self.scalars - self.vmin) / (self.vmax - self.vmin), 0, 1)
+            c = _colormap(self.cmap, mpl)(t)[:, :3]
+            if self.mask is not None:
+                c[~self.mask] = MASK_COLOR
+            return c
+        if self.colors is not None:
+            return self.colors[:, :3].copy()
+        default = _FLAT_COLOR if self.flat else _SOLID_COLOR
+        return np.tile(_rgb(self.color, default, mpl), (n, 1))
 
     @property
     def flat(self) -> bool:
@@ -632,6 +668,9 @@ def _raster_image(p: Panel, xlim, ylim, shape_px, mpl) -> np.ndarray:
         rgba[mask] = _sample_bilinear(p.texture, uv[mask])
     elif p.colors is not None:
         mask, rgba = _rasterize(xy, p.F, p.colors, grid)
+    elif p.mask is not None:  # interpolate the colours: the grey has no scalar value
+        c = np.hstack([p.vertex_colors(), np.ones((len(xy), 1))])
+        mask, rgba = _rasterize(xy, p.F, c, grid)
     else:
         mask, s = _rasterize(xy, p.F, p.scalars[:, None], grid)
         t = np.clip((s[..., 0] - p.vmin) / (p.vmax - p.vmin), 0.0, 1.0)
@@ -745,8 +784,7 @@ def _draw_solid(ax, p: Panel, view: _View, px: float, mpl, dpi: float, xlim, yli
     xy, depth = cam.project(Pw, center=view.center, radius=view.radius)
     light, spec, keep = _shade(Pw, F, cam, view, p.cull)
     if p.scalars is not None:
-        t = np.clip((p.scalars[F] - p.vmin) / (p.vmax - p.vmin), 0, 1)
-        base = _colormap(p.cmap, mpl)(t)[..., :3]
+        base = p.vertex_colors()[F]
         ambient, shine = 0.5, 0.12
     elif p.colors is not None:
         base = p.colors[F][..., :3]
@@ -995,7 +1033,10 @@ def _views(panels_by_frame: list[list], shared_view: bool, camera: Camera | None
     npos = len(panels_by_frame[0])
     if shared_view:
         v = _make_view([p for fr in panels_by_frame for p in fr], camera)
-        return [v] * npos
+        # Meshes share one scale; each plot keeps its own axes (they plot different things).
+        columns = [[fr[j] for fr in panels_by_frame] for j in range(npos)]
+        return [_make_view(c, camera) if all(isinstance(p, PlotPanel) for p in c) else v
+                for c in columns]
     out = []
     for j in range(npos):
         column = [fr[j] for fr in panels_by_frame]
