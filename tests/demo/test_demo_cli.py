@@ -122,3 +122,16 @@ def test_help_and_docs_say_nothing_internal(capsys):
     for name, text in texts.items():
         hits = [m.group(0) for m in bad.finditer(text)]
         assert not hits, (name, hits)
+
+
+# ---------------------------------------------------------------- boundaries
+def test_demo_uses_public_apis_of_other_packages():
+    from pathlib import Path
+
+    import stbs.demo
+
+    for path in Path(stbs.demo.__file__).parent.glob("*.py"):
+        for mod in re.findall(r"^\s*(?:from|import)\s+(\S+)", path.read_text(), flags=re.M):
+            # A private module of another subpackage (stbs.meshing._x, ..io._x).
+            assert not re.match(r"(stbs\.|\.\.)\w+\._", mod), (path.name, mod)
+            assert not re.match(r"(stbs\.|\.\.)cli\b", mod), (path.name, mod)

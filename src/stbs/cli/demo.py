@@ -37,9 +37,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--only", metavar="FIGS", default=None,
                    help="comma-separated figures, e.g. fig2,fig5 (default: all)")
     p.add_argument("--data", metavar="DIR", default=None,
-                   help="add libigl's arm scan, with its own weights, to fig5: DIR holds "
-                        "libigl's tutorial data files arm.obj, arm.tgf and arm-weights.dmat, "
-                        "or a libigl-tutorial-data folder with them")
+                   help="add libigl's arm scan, with its own weights, to fig5; DIR is "
+                        "the folder of libigl's tutorial data with arm.obj, arm.tgf and "
+                        "arm-weights.dmat, or a folder holding libigl-tutorial-data/")
 
 
 def requires(args: argparse.Namespace) -> list[str]:
