@@ -107,11 +107,11 @@ def boundary_faces(T, V=None) -> np.ndarray:
     >>> import numpy as np
     >>> from stbs.geometry import boundary_faces
     >>> V = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], float)
-    >>> boundary_faces([[0, 2, 1, 3]], V)  # a negatively oriented tet
-    array([[1, 2, 3],
-           [0, 3, 2],
+    >>> boundary_faces([[0, 2, 1, 3]], V)  # a negatively oriented tet, faces outwards
+    array([[0, 2, 1],
            [0, 1, 3],
-           [0, 2, 1]])
+           [0, 3, 2],
+           [1, 2, 3]])
     """
     T = _checks.index_array("T", T, ndim=2, shape=(None, 4))
     if V is not None:

@@ -100,7 +100,7 @@ def build_rig(V, sk: Skeleton, *, F=None, T=None, W=None,
     --------
     >>> import stbs
     >>> from stbs.shapes import cigar
-    >>> V, F, sk = cigar(12)
+    >>> V, F, sk, _ = cigar(12)
     >>> rig = stbs.build_rig(V, sk, F=F, bone="heat", endpoint="projection")
     >>> rig.W.shape == (len(V), sk.n_bones), bool(abs(rig.W.sum(axis=1) - 1).max() < 1e-9)
     (True, True)
