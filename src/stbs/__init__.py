@@ -1,7 +1,7 @@
 """stbs: skeletal shape deformation with stretchable, twistable bones.
 
 Jacobson & Sorkine, "Stretchable and Twistable Bones for Skeletal Shape
-Deformation", SIGGRAPH Asia 2011. DESIGN.md is the contract; names here are stable.
+Deformation", SIGGRAPH Asia 2011. The names exported here are stable.
 
 Names are loaded on first use (PEP 562), so ``import stbs`` and ``stbs --help`` stay
 fast and numba is imported only when skinning is first needed. Subpackages: the maths

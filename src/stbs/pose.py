@@ -1,4 +1,4 @@
-"""Poses of a skeleton: per-bone rotation, posed start joint, stretch and twist (DESIGN §2)."""
+"""Poses of a skeleton: per-bone rotation, posed start joint, stretch and twist."""
 
 from __future__ import annotations
 
@@ -90,7 +90,7 @@ class Pose:
 
     @classmethod
     def from_joints(cls, sk: Skeleton, C_posed, twist=None) -> Pose:
-        """Pose from posed joint positions (DESIGN §2, way 2: dragging joints).
+        """Pose from posed joint positions (dragging joints).
 
         Parameters
         ----------
@@ -208,7 +208,7 @@ def forward_kinematics(sk: Skeleton, rotations=None, stretch=None, twist=None,
     twist : (j,) float, optional
         Per-joint twist (radians, 3D only). A twist at joint J grows along the bone
         ending at J (theta_b) and is carried rigidly by every bone below J, because
-        children inherit the parent's full end rotation ``R_p K_p(1)`` (DESIGN §2).
+        children inherit the parent's full end rotation ``R_p K_p(1)``.
         At a root joint (where no bone ends) it turns the bones starting there rigidly.
     translation : (d,) float, optional
         Added to the start of every root bone.

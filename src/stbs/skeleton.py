@@ -1,4 +1,4 @@
-"""The rig's skeleton: joints ``C`` and directed bones ``BE`` (DESIGN §1)."""
+"""The rig's skeleton: joints ``C`` and directed bones ``BE``."""
 
 from __future__ import annotations
 

@@ -1,6 +1,6 @@
 """Batched rotations, quaternions and unit dual quaternions.
 
-Conventions (DESIGN §1): quaternions are ``(w, x, y, z)``, scalar first; points are
+Conventions: quaternions are ``(w, x, y, z)``, scalar first; points are
 row vectors; every function accepts arbitrary leading batch axes.
 A unit dual quaternion is a pair ``(qr, qd)`` of (..., 4) arrays with
 ``qd = 0.5 * (0, t) * qr`` for the rigid map ``x -> R x + t``.
@@ -258,7 +258,7 @@ def dq_blend(w: np.ndarray, qr: np.ndarray, qd: np.ndarray) -> tuple[np.ndarray,
     """Blend (..., m) weights of (..., m, 4) dual quaternions with pivot hemisphere flip.
 
     Each quaternion is flipped into the hemisphere of the one with the largest weight
-    (DESIGN §3), then the weighted sum is normalised.
+    (the pivot), then the weighted sum is normalised.
     """
     w = np.asarray(w, dtype=float)
     piv = np.take_along_axis(qr, np.argmax(w, axis=-1)[..., None, None], axis=-2)

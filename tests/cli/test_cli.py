@@ -14,8 +14,8 @@ import stbs
 from stbs import Rig
 from stbs.cli import main
 from stbs.cli.deform import METHODS as CLI_METHODS
-from stbs.demo import bar
 from stbs.io import read_mesh, read_pose, save_rig, write_dmat, write_mesh, write_tgf
+from stbs.shapes import bar
 from stbs.weights.endpoint import projection
 
 POSE = {"rotate": {"lower": {"axis": [0, 0, 1], "angle": 60}},

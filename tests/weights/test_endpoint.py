@@ -12,7 +12,7 @@ from scipy.optimize import lsq_linear
 
 import stbs
 import stbs.io
-from stbs.demo.shapes import box_tets
+from stbs.shapes import box_tets
 from stbs.weights import endpoint as ep
 from stbs.weights.laplacian import cotmatrix, massmatrix
 

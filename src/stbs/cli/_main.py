@@ -1,4 +1,4 @@
-"""``stbs``: argument parsing, dispatch and the error contract of DESIGN §6.
+"""``stbs``: argument parsing, dispatch and the error contract.
 
 Every subcommand lives in its own module with ``NAME``, ``HELP``, ``DESCRIPTION``,
 ``EPILOG`` (an example), ``add_arguments(parser)`` and ``run(args) -> int``, and may

@@ -26,7 +26,7 @@ and optionally endpoint weights E) or the three files --mesh, --skeleton and
 methods need E; without it they use projection endpoint weights (paper eq. 8)
 and say so on stderr.
 
-The pose is a JSON file naming bones by index or by name (see stbs.posefile):
+The pose is a JSON file naming bones by index or by name (see stbs.io.read_pose):
   {"joints": [[x, y, z], ...], "twist": {"3": [0, 180]}}
   {"rotate": {"2": {"axis": [0, 1, 0], "angle": 90}}, "stretch": {"4": 1.5},
    "twist": {"forearm": [0, 180]}, "translate": [0, 0, 0]}

@@ -102,7 +102,7 @@ class _Stages:
     """Times each stage; on a terminal also says which stage is running.
 
     Progress lines go to stderr only when it is a terminal, so a failed run in a
-    script or CI still prints exactly one error line (DESIGN §6).
+    script or CI still prints exactly one error line.
     """
 
     def __init__(self) -> None:

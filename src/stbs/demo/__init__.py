@@ -8,7 +8,6 @@ from them); :mod:`stbs.demo.render` draws headless PNG/GIF with matplotlib and
 :mod:`stbs.demo.gallery` writes ``index.html``.
 """
 
-from ..shapes import bar, box, cigar
 from .figures import (
     FIGURES,
     Figure,
@@ -19,4 +18,4 @@ from .figures import (
 from .run import FIGURE_KEYS, DemoResult, format_summary, run_demo
 
 __all__ = ["run_demo", "DemoResult", "format_summary", "Figure", "FIGURES", "FIGURE_KEYS",
-           "fig2_cigar_stretch", "fig3_box_twist", "fig3_bar_bend_twist", "cigar", "box", "bar"]
+           "fig2_cigar_stretch", "fig3_box_twist", "fig3_bar_bend_twist"]

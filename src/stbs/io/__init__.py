@@ -1,4 +1,4 @@
-"""File input and output: meshes, skeletons, weights, rigs and poses (DESIGN §6).
+"""File input and output: meshes, skeletons, weights, rigs and poses.
 
 Readers raise :class:`FileNotFoundError` for a missing file, :class:`ValueError`
 for an unknown extension (listing the supported ones) and :class:`FormatError`

@@ -1,7 +1,7 @@
 """Atomic file output: write to a temporary file beside the target, then rename.
 
 A failed write never leaves a half-written file behind and never touches an
-existing file at the destination (DESIGN §6). ``os.replace`` is atomic on POSIX
+existing file at the destination. ``os.replace`` is atomic on POSIX
 and on Windows when source and destination share a folder, which is why the
 temporary file is created in the destination's folder.
 """

@@ -14,7 +14,7 @@ Each non-empty line describes one *node* (a joint, i.e. a bone tip)::
   stretch, twist, the last 3x4 transform, the tip's degree-of-freedom type); they
   are returned as raw numbers in :attr:`BoneForest.extra`.
 
-Mapping to ``C``/``BE`` (DESIGN §1): every node becomes a joint (row ``i`` of
+Mapping to ``C``/``BE``: every node becomes a joint (row ``i`` of
 ``C`` is the node on the ``i``-th data line); every node with a parent gives a
 bone from the parent's joint to its own joint. A root is not a bone. A *weighted*
 root (``wi >= 0``, ``parent = -1``) is a **point handle** in FAST/BBW (a weight

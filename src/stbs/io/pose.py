@@ -1,4 +1,4 @@
-"""Pose files: a :class:`stbs.Pose` described in JSON (DESIGN §6).
+"""Pose files: a :class:`stbs.Pose` described in JSON.
 
 A pose file is one JSON object in one of two forms. Bones are named by index
 (a JSON number, or a string of digits, since JSON object keys are strings) or by
@@ -6,7 +6,7 @@ name (:meth:`stbs.Skeleton.bone_index`; a name wins over a digit string that is
 also a name). Angles are in **degrees unless** ``"degrees": false`` is given, in
 which case they are radians. Every other key is an error.
 
-Joints form (DESIGN §2, way 2: dragging joints)::
+Joints form (dragging joints, as :meth:`stbs.Pose.from_joints`)::
 
     {"joints": [[x, y, z], ...], "twist": {"3": [0, 180]}, "degrees": true}
 
@@ -19,7 +19,7 @@ Joints form (DESIGN §2, way 2: dragging joints)::
     its start and end joint, about its own axis. These are *absolute* per-bone
     values (nothing is inherited in this form); unlisted bones get ``[0, 0]``.
 
-Forward-kinematics form (DESIGN §2, way 3)::
+Forward-kinematics form (local rotations, as :func:`stbs.forward_kinematics`)::
 
     {"rotate": {"2": {"axis": [0, 1, 0], "angle": 90}}, "stretch": {"4": 1.5},
      "twist": {"forearm": [0, 180]}, "translate": [0, 0, 0], "degrees": true}

@@ -1,4 +1,4 @@
-"""Meshing with the skeleton built in (DESIGN §4: skeleton samples are mesh vertices).
+"""Meshing with the skeleton built in (skeleton samples are mesh vertices).
 
 =========================  ====================================================
 function                   what it does

@@ -36,7 +36,7 @@ def triangulate_2d(outline, sk: Skeleton, *, max_area: float | None = None,
 
     Every joint is a vertex and every bone is a chain of constrained segments
     through samples along it, so that no triangle straddles a bone and bounded
-    biharmonic weights can be pinned exactly on the skeleton (DESIGN §4).
+    biharmonic weights can be pinned exactly on the skeleton.
 
     Parameters
     ----------

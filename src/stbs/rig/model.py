@@ -1,4 +1,4 @@
-"""The rig model: a rest mesh, one skeleton and the weights (DESIGN §5, §6).
+"""The rig model: a rest mesh, one skeleton and the weights.
 
 A :class:`Rig` is data, not a file: :func:`stbs.io.save_rig` and
 :func:`stbs.io.load_rig` write and read it as a versioned ``.npz``, and

@@ -1,4 +1,4 @@
-"""The four skinning methods of DESIGN §3: lbs, dqs, stbs-lbs (eq. 5), stbs-dqs (eq. 6)."""
+"""The four skinning methods: lbs, dqs, stbs-lbs (eq. 5), stbs-dqs (eq. 6)."""
 
 from .deformer import METHODS, Deformer, deform
 from .layout import TopK, top_k

@@ -155,7 +155,7 @@ class Deformer:
 
 def deform(V, sk: Skeleton, pose: Pose, W, E=None, *, method: Method = "stbs-dqs",
            dtype=None, max_influences: int | None = None) -> np.ndarray:
-    """Deform ``V`` by ``pose`` with one of the four skinning methods (DESIGN §3).
+    """Deform ``V`` by ``pose`` with one of the four skinning methods.
 
     A one-shot wrapper over :class:`Deformer`; build a ``Deformer`` to skin many poses.
 

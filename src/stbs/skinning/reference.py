@@ -1,4 +1,4 @@
-"""Plain NumPy implementations of DESIGN §3, written for reading, not speed.
+"""Plain NumPy implementations of the four skinning methods, written for reading, not speed.
 
 They follow the equations term by term (dense weights, one (n, 3, 3) twist matrix
 per bone), share nothing with the compiled kernels but the transforms module, and
