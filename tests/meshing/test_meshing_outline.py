@@ -9,8 +9,7 @@ import pytest
 from meshing_checks import ENGINES_2D, check_covers_outline, check_trimesh
 
 import stbs
-from stbs.io import FormatError
-from stbs.io import read_polygons
+from stbs.io import FormatError, read_polygons
 from stbs.meshing import boundary_loops, outline_from_image, triangulate_2d
 from stbs.meshing._geometry import point_segment_distance, signed_area
 
