@@ -1,7 +1,7 @@
 """The paper's Figs. 2 and 3 as computations: one function per figure, returning numbers.
 
 Each function builds a built-in shape (:mod:`stbs.shapes`), poses it, deforms it
-with the methods of DESIGN §3 and measures one or two numbers per method that show
+with the four skinning methods and measures one or two numbers per method that show
 the paper's point. They return a :class:`Figure` holding the rest mesh, the deformed
 positions per method and the numbers, so that a renderer can draw the same cases.
 
