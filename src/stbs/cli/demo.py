@@ -21,7 +21,7 @@ the paper's comparisons headless (matplotlib) into the output folder:
   fig12  a picture made in code, posed by dragging joints (textured)
 Writes PNG panels, GIF animations, index.html (open it in a browser), summary.txt
 and summary.json, and prints the table of numbers. Only the output folder is
-written. About a minute (--quick: a few seconds). Needs the demo extra
+written. About 10 s on two cores (--quick: a few seconds). Needs the demo extra
 (pip install 'stbs-skinning[demo]': matplotlib and Pillow)."""
 EPILOG = f"""examples:
   {EXAMPLE}
