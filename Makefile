@@ -1,11 +1,15 @@
 # The one way to run things (STYLE habit 10): developers, CI and users run these targets.
+# Needs only Python 3.11, git and make (Debian bookworm); the rest is installed here:
+# the Python packages into .venv, the system libraries with apt-get when missing.
 PY ?= python3
 VENV := .venv
 BIN := $(VENV)/bin
 PIP := $(BIN)/python -m pip --disable-pip-version-check -q
 DEMO_OUT ?= demo-out
+# wheel-check's folder, made afresh on each run: dist/ (sdist and wheel), venv/, build.log
+WHEEL_CHECK := build/wheel-check
 
-.PHONY: demo test lint bench bench-bbw install install-test install-cholmod clean
+.PHONY: demo test pytest wheel-check lint bench bench-bbw install install-test clean
 
 $(BIN)/python:
 	$(PY) -m venv $(VENV)
@@ -28,8 +32,17 @@ $(VENV)/.stamp-syslibs: | $(BIN)/python
 	  echo "note: no system CHOLMOD; BBW will use the cholespy backend (slower)"
 	@touch $@
 
+# What the tests need beyond that: a C++ compiler and Eigen's headers for the libigl
+# C++ DQS peer that tests/test_bench.py checks against (see docs/benchmarks.md).
+$(VENV)/.stamp-testlibs: | $(BIN)/python
+	@{ command -v g++ >/dev/null && test -f /usr/include/eigen3/Eigen/Core; } || \
+	  { command -v apt-get >/dev/null && apt-get update -qq && \
+	    apt-get install -y -qq g++ libeigen3-dev; } || \
+	  echo "note: no g++ or Eigen headers; the igl-dqs peer test cannot run (a failure under CI)"
+	@touch $@
+
 install: $(VENV)/.stamp-install $(VENV)/.stamp-syslibs
-install-test: $(VENV)/.stamp-test $(VENV)/.stamp-syslibs
+install-test: $(VENV)/.stamp-test $(VENV)/.stamp-syslibs $(VENV)/.stamp-testlibs
 
 demo: install
 	$(BIN)/stbs demo --out $(DEMO_OUT)
@@ -37,22 +50,46 @@ demo: install
 lint: install-test
 	$(BIN)/ruff check src tests benchmarks
 
+# The whole suite, slow tests included, with the docstring and README.md examples
+# (pyproject.toml: testpaths, --doctest-modules); then the wheel as users get it.
+# Quick loop: .venv/bin/python -m pytest -m "not slow" (docs/dev/testing.md).
 test: install-test lint
-	$(BIN)/python -m pytest -q
+	$(BIN)/python -m pytest -q --durations=20
+	@$(MAKE) --no-print-directory wheel-check
 
-# Eigen headers for the libigl C++ DQS peer (see docs/benchmarks.md); optional.
+pytest: install-test
+	$(BIN)/python -m pytest -q --durations=20
+
+# Build the sdist and, from it, the wheel (python -m build: a clean, isolated build,
+# so a file the sdist or the wheel lacks shows up here), install the wheel into a
+# fresh virtual environment without extras and run the command from a folder
+# outside the source tree, then again with the demo extra.
+wheel-check: install-test
+	rm -rf $(WHEEL_CHECK)
+	mkdir -p $(WHEEL_CHECK)
+	$(BIN)/python -m build --outdir $(WHEEL_CHECK)/dist . > $(WHEEL_CHECK)/build.log 2>&1 || \
+	  { tail -n 40 $(WHEEL_CHECK)/build.log; exit 1; }
+	$(BIN)/python -m venv $(WHEEL_CHECK)/venv
+	@set -eu; whl=$$(ls $(abspath $(WHEEL_CHECK))/dist/*.whl); venv=$(abspath $(WHEEL_CHECK))/venv; \
+	  run=$$(mktemp -d); trap 'rm -rf "$$run"' EXIT; cd "$$run"; unset PYTHONPATH; \
+	  ver=$$(basename "$$whl" | cut -d- -f2); \
+	  echo "wheel-check: $$(basename $$whl) into a fresh venv, run from $$run"; \
+	  pip="$$venv/bin/python -m pip install --disable-pip-version-check -q"; \
+	  $$pip "$$whl" > pip.log 2>&1 || { cat pip.log; exit 1; }; \
+	  "$$venv/bin/python" -c "import stbs, sys; p = stbs.__file__; \
+	    sys.exit(0 if p.startswith('$$venv') else 'stbs imported from ' + p)"; \
+	  "$$venv/bin/stbs" --help > /dev/null; \
+	  test "$$("$$venv/bin/stbs" --version)" = "stbs $$ver" || \
+	    { echo "stbs --version is not stbs $$ver"; exit 1; }; \
+	  "$$venv/bin/stbs" bench --sizes 10k --no-peers > bench.txt 2>&1 || { cat bench.txt; exit 1; }; \
+	  $$pip "$$whl[demo]" > pip.log 2>&1 || { cat pip.log; exit 1; }; \
+	  "$$venv/bin/stbs" demo --quick --out demo > demo.txt 2>&1 || { cat demo.txt; exit 1; }; \
+	  test -s demo/index.html; \
+	  echo "wheel-check: stbs --help, --version, bench --sizes 10k --no-peers, demo --quick: ok"
+
+# The libigl C++ DQS peer also needs libigl's headers (LIBIGL_INCLUDE; docs/benchmarks.md).
 bench: install-test
-	@test -f /usr/include/eigen3/Eigen/Core || { command -v apt-get >/dev/null && \
-	  apt-get update -qq && apt-get install -y -qq libeigen3-dev; } || \
-	  echo "note: no Eigen headers; the igl-dqs peer will be skipped"
 	$(BIN)/stbs bench
-
-# Optional fastest Cholesky: CHOLMOD built against Debian's SuiteSparse (bookworm has
-# SuiteSparse 5.12; scikit-sparse 0.5 needs SuiteSparse 7).
-install-cholmod: install-test
-	command -v apt-get >/dev/null && apt-get update -qq && \
-	  apt-get install -y -qq libsuitesparse-dev libopenblas0-pthread
-	$(PIP) install "scikit-sparse>=0.4.12,<0.5"
 
 bench-bbw: install-test
 	$(BIN)/python benchmarks/bbw_vs_igl.py

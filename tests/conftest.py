@@ -28,32 +28,34 @@ def shared_data() -> Path:
     return d
 
 
+
 # Under CI ($CI set) a skip is a failure, with its reason: a skip there hides missing
 # test data, a missing extra or tool that `make test` should have installed, or a
-# docstring example that never runs. Expected failures (xfail) are left alone.
-def _ci_failure(reason: str) -> str:
-    return f"skipped under CI ($CI is set), which counts as a failure: {reason}"
-
-
-def _skip_reason(rep) -> str:
-    lr = rep.longrepr
-    reason = str(lr[2]) if isinstance(lr, tuple) and len(lr) == 3 else str(lr)
-    return reason.removeprefix("Skipped: ")
-
-
-@pytest.hookimpl(hookwrapper=True)
-def pytest_runtest_makereport(item, call):
-    outcome = yield
-    rep = outcome.get_result()
-    if os.environ.get("CI") and rep.skipped and not hasattr(rep, "wasxfail"):
+# docstring example that never runs. Expected failures (xfail) are left alone. A
+# plugin rather than hooks here, so that it covers the doctests of src/stbs and
+# README.md too (a conftest's own hooks see only the items below its folder).
+class _SkipsFailUnderCI:
+    @staticmethod
+    def _fail(rep) -> None:
+        lr = rep.longrepr
+        reason = str(lr[2]) if isinstance(lr, tuple) and len(lr) == 3 else str(lr)
         rep.outcome = "failed"
-        rep.longrepr = _ci_failure(_skip_reason(rep))
+        rep.longrepr = ("skipped under CI ($CI is set), which counts as a failure: "
+                        + reason.removeprefix("Skipped: "))
+
+    @pytest.hookimpl(hookwrapper=True)
+    def pytest_runtest_makereport(self, item, call):
+        rep = (yield).get_result()
+        if rep.skipped and not hasattr(rep, "wasxfail"):
+            self._fail(rep)
+
+    @pytest.hookimpl(hookwrapper=True)
+    def pytest_make_collect_report(self, collector):
+        rep = (yield).get_result()
+        if rep.skipped:  # a module-level skip or importorskip
+            self._fail(rep)
 
 
-@pytest.hookimpl(hookwrapper=True)
-def pytest_make_collect_report(collector):
-    outcome = yield
-    rep = outcome.get_result()
-    if os.environ.get("CI") and rep.skipped:  # a module-level skip or importorskip
-        rep.outcome = "failed"
-        rep.longrepr = _ci_failure(_skip_reason(rep))
+def pytest_configure(config):
+    if os.environ.get("CI") and not config.pluginmanager.has_plugin("stbs-ci-skips"):
+        config.pluginmanager.register(_SkipsFailUnderCI(), "stbs-ci-skips")
