@@ -7,9 +7,9 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from shape_checks import assert_closed_outward, components
 
 import stbs
+from shape_checks import assert_closed_outward, components
 from stbs.geometry import winding_numbers
 from stbs.meshing._geometry import triangle_angles
 from stbs.shapes import Model, arm

@@ -2,8 +2,8 @@
 
 import numpy as np
 import pytest
-from shape_checks import assert_closed_outward, components, edges, sphere, torus, volume
 
+from shape_checks import assert_closed_outward, components, edges, sphere, torus, volume
 from stbs.meshing._geometry import triangle_angles
 from stbs.shapes import (
     ellipsoid,
