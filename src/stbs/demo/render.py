@@ -1131,8 +1131,15 @@ def render_panels(path: str | os.PathLike, panels: Sequence[Panel | PlotPanel], 
 
     Examples
     --------
-    >>> render_panels("twist.png", [Panel(V, F, "LBS"), Panel(U, F, "STBS-DQS")],
-    ...               title="one bone twisted 315 degrees")  # doctest: +SKIP
+    >>> import os, tempfile
+    >>> import stbs
+    >>> V, F, sk, W = stbs.shapes.cigar(8)
+    >>> U = stbs.deform(V, sk, stbs.forward_kinematics(sk, stretch=[2.0]), W, method="lbs")
+    >>> path = os.path.join(tempfile.mkdtemp(), "stretch.png")
+    >>> render_panels(path, [Panel(V, F, "rest"), Panel(U, F, "LBS")],
+    ...               title="one bone stretched x2").name
+    'stretch.png'
+
     """
     p = _check_suffix(path, (".png",))
     rgba = draw_panels(panels, ncols=ncols, panel_size=panel_size, title=title,

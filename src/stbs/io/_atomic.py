@@ -82,8 +82,13 @@ def atomic_open(path: str | os.PathLike, mode: str = "wb", **open_kwargs: Any) -
 
     Examples
     --------
-    >>> with atomic_open("out.txt", "w") as f:  # doctest: +SKIP
-    ...     f.write("hello\\n")
+    >>> import os, tempfile
+    >>> from stbs.io import atomic_open
+    >>> path = os.path.join(tempfile.mkdtemp(), "out.txt")
+    >>> with atomic_open(path, "w") as f:
+    ...     _ = f.write("hello")
+    >>> open(path).read()
+    'hello'
     """
     if mode not in ("wb", "w", "wt"):
         raise ValueError(f"mode must be one of 'wb', 'w', 'wt', got {mode!r}")

@@ -180,9 +180,13 @@ def read_mesh(path: str | os.PathLike, *, dim: Dim = "auto") -> Mesh:
 
     Examples
     --------
-    >>> m = read_mesh("arm.obj")  # doctest: +SKIP
-    >>> m.V.shape, m.F.shape  # doctest: +SKIP
-    ((8311, 3), (16618, 3))
+    >>> import os, tempfile
+    >>> from stbs.io import read_mesh, write_mesh
+    >>> path = os.path.join(tempfile.mkdtemp(), "tri.obj")
+    >>> write_mesh(path, [[0, 0, 0], [1, 0, 0], [0, 1, 1]], [[0, 1, 2]])
+    >>> m = read_mesh(path)
+    >>> m.V.shape, m.F.tolist()
+    ((3, 3), [[0, 1, 2]])
     """
     dim = check_dim(dim)
     ext = suffix(path, MESH_READ_EXTENSIONS, "read_mesh")

@@ -136,11 +136,12 @@ def tetrahedralize(V, F, sk: Skeleton, *, max_volume: float | None = None,
 
     Examples
     --------
-    >>> from stbs.io import read_mesh, read_skeleton  # doctest: +SKIP
-    >>> m = read_mesh("arm.obj"); sk = read_skeleton("arm.tgf")  # doctest: +SKIP
-    >>> tm = tetrahedralize(m.V, m.F, sk)  # doctest: +SKIP
-    >>> bool((tm.V[:len(m.V)] == m.V).all())  # doctest: +SKIP
-    True
+    >>> import numpy as np
+    >>> import stbs
+    >>> V, F, sk, _ = stbs.shapes.cigar(10)
+    >>> tm = stbs.tetrahedralize(V, F, sk, engine="builtin")
+    >>> bool((tm.V[:len(V)] == V).all()), bool(np.all(tm.V[tm.joint_vertex] == sk.C))
+    (True, True)
     """
     _checks.skeleton(sk)
     engine = _checks.choice("engine", engine, ENGINES_3D)

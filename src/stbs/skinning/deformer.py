@@ -44,8 +44,15 @@ class Deformer:
 
     Examples
     --------
-    >>> dfm = Deformer(V, sk, W, E, method="stbs-dqs")   # doctest: +SKIP
-    >>> U = dfm(stbs.forward_kinematics(sk, twist=tau))   # doctest: +SKIP
+    >>> import numpy as np
+    >>> import stbs
+    >>> V, F, sk, W = stbs.shapes.cigar(8)           # one bone along x, from -1 to 1
+    >>> E = stbs.endpoint_weights(V, sk, method="projection")
+    >>> dfm = stbs.Deformer(V, sk, W, E, method="stbs-dqs")    # precompute once
+    >>> U = dfm(stbs.forward_kinematics(sk, stretch=[2.0]))    # per frame
+    >>> tip = np.argmax(V[:, 0])
+    >>> round(float(U[tip, 0] - V[tip, 0]), 6)     # the tip moves by the bone's growth
+    2.0
     """
 
     def __init__(self, V, sk: Skeleton, W, E=None, *, method: Method = "stbs-dqs",
