@@ -4,6 +4,7 @@ one version source. See docs/dependencies.md and docs/dev/testing.md."""
 from __future__ import annotations
 
 import ast
+import fnmatch
 import importlib.metadata
 import re
 import shutil
@@ -221,6 +222,29 @@ def test_the_linters_target_is_the_python_floor():
     py = _floor(PROJECT["requires-python"])
     assert PYPROJECT["tool"]["ruff"]["target-version"] == f"py{py.major}{py.minor}"
     assert f"Programming Language :: Python :: {py.major}.{py.minor}" in PROJECT["classifiers"]
+
+
+# --------------------------------------------------------------------------- the wheel's files
+def _package_files() -> list[Path]:
+    skip = {"__pycache__"}
+    return [p for p in SRC.rglob("*") if p.is_file() and not skip & set(p.parts)
+            and p.suffix not in (".pyc", ".nbi", ".nbc")]
+
+
+def test_every_folder_of_python_files_is_a_package():
+    # packages.find (not find_namespace) leaves out a folder without __init__.py: its
+    # modules would be missing from the wheel
+    folders = {p.parent for p in _package_files() if p.suffix == ".py"}
+    missing = sorted(str(d.relative_to(ROOT)) for d in folders if not (d / "__init__.py").exists())
+    assert not missing, f"no __init__.py (left out of the wheel): {missing}"
+
+
+def test_every_data_file_is_package_data():
+    # a file other than .py reaches the wheel only through [tool.setuptools.package-data]
+    patterns = PYPROJECT["tool"]["setuptools"].get("package-data", {}).get("stbs", [])
+    data = [p.relative_to(SRC).as_posix() for p in _package_files() if p.suffix != ".py"]
+    left = [f for f in data if not any(fnmatch.fnmatch(f, pat) for pat in patterns)]
+    assert not left, f"not in [tool.setuptools.package-data] stbs = {patterns}: {left}"
 
 
 # --------------------------------------------------------------------------- version
