@@ -1,0 +1,251 @@
+"""``stbs view``: serve a rig to the browser viewer on 127.0.0.1 (the server half)."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+NAME = "view"
+HELP = "serve a rig to the browser viewer on 127.0.0.1 (prints the page's URL)"
+EXAMPLE = "stbs view arm.npz"
+#: The built-in rigs of --example (the first is the default with no input at all).
+EXAMPLES = ("arm", "picture")
+DESCRIPTION = """\
+Serve a rig to the browser viewer: start a server on 127.0.0.1 (only), print one line,
+the page's URL http://127.0.0.1:PORT/?token=TOKEN (a new token each run), open it in
+the browser (unless --no-browser), and serve until Ctrl-C.
+
+The rig is a .npz rig file, a MESH and SKELETON rigged first as 'stbs rig' does
+(--bone, --endpoint, --tets, --clip-skeleton, --tol; an outline MESH, .poly or an
+image, is traced and meshed with the defaults of 'stbs rig'), or a built-in example:
+  arm      an arm with a mitten hand, three bones, bone heat + heat endpoint weights
+           (paper Figs. 1, 5; the default with no input)
+  picture  the 2D picture of the paper's Fig. 12, BBW + BBW endpoint weights, textured
+
+Every request other than the page and its assets needs the token; a request for
+another host name than 127.0.0.1:PORT or localhost:PORT is refused. The page saves
+poses as JSON files into the rig's folder (the folder of --save-as when given) and the
+rig to --save-as, or beside the input: RIG.npz is saved as RIG-edited.npz (never over
+the input unless --save-as names it), MESH as MESH.npz; for an --example only with
+--save-as. Files are written to a temporary file and renamed.
+
+This release has the server and its rig data API only (docs/viewer.md); the page that
+renders and skins the rig in the browser comes later, and the page served now says so."""
+EPILOG = f"""examples:
+  {EXAMPLE}
+  stbs view                                     # the arm example
+  stbs view --example picture --no-browser --port 8765
+  stbs view arm.obj arm.tgf --bone heat --endpoint heat --save-as arm-rig.npz"""
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    from .rig import BONE, ENDPOINT, add_clip_argument, add_tol_argument
+
+    p.add_argument("input", nargs="?", metavar="RIG.npz|MESH",
+                   help="a .npz rig, or a mesh (then give its SKELETON too)")
+    p.add_argument("skeleton", nargs="?", metavar="SKELETON",
+                   help="the skeleton (.tgf .bf) of MESH, rigged before serving")
+    p.add_argument("--example", choices=EXAMPLES, default=None,
+                   help="a built-in rig instead of files (default with no input: arm)")
+    p.add_argument("--port", type=int, default=0, metavar="N",
+                   help="port on 127.0.0.1 (default: a free one)")
+    p.add_argument("--no-browser", action="store_true",
+                   help="only print the URL; do not open a browser")
+    p.add_argument("--save-as", default=None, metavar="PATH.npz",
+                   help="where the page saves the rig (its folder also takes the poses)")
+    g = p.add_argument_group("rigging MESH SKELETON (as stbs rig)")
+    g.add_argument("--bone", choices=BONE, default=None, help="bone weights (default: bbw)")
+    g.add_argument("--endpoint", choices=ENDPOINT, default=None,
+                   help="endpoint weights (default: bbw)")
+    g.add_argument("--tets", default=None, metavar="auto|FILE",
+                   help="3D bbw: tetrahedralize the surface (auto) or read tets from FILE")
+    add_clip_argument(g)
+    add_tol_argument(g)
+
+
+def requires(args: argparse.Namespace) -> list[str]:
+    """Optional modules this run needs: Pillow for an image MESH."""
+    from .rig import IMAGE_EXTENSIONS
+
+    if args.skeleton is not None and args.input is not None:
+        return ["PIL"] if args.input.lower().endswith(IMAGE_EXTENSIONS) else []
+    return []
+
+
+def _check(args: argparse.Namespace):
+    """The run's plan from its arguments, before any work: (kind, save target)."""
+    from pathlib import Path
+
+    from ._errors import CommandError
+
+    if args.example is not None and args.input is not None:
+        raise CommandError(f"give a rig (RIG.npz or MESH SKELETON) or --example "
+                           f"{args.example}, not both")
+    if args.input is None:
+        kind = "example"
+    elif args.skeleton is None:
+        if not args.input.lower().endswith(".npz"):
+            raise CommandError(f"{args.input!r}: expected a .npz rig, or a MESH followed by "
+                               f"its SKELETON")
+        kind = "rig"
+    else:
+        kind = "mesh"
+    rigging = {"--bone": args.bone, "--endpoint": args.endpoint, "--tets": args.tets,
+               "--tol": args.tol, "--clip-skeleton": args.clip_skeleton or None}
+    given = [k for k, v in rigging.items() if v is not None]
+    if given and kind != "mesh":
+        raise CommandError(f"{given[0]} applies to MESH SKELETON, which stbs view rigs first")
+    if not 0 <= args.port <= 65535:
+        raise CommandError(f"--port: expected 0..65535 (0: a free port), got {args.port}")
+    save_as = None
+    if args.save_as is not None:
+        save_as = Path(args.save_as)
+        folder = save_as.parent if str(save_as.parent) else Path(".")
+        if save_as.suffix.lower() != ".npz":
+            raise CommandError(f"--save-as {args.save_as!r}: expected a .npz rig file")
+        if not folder.is_dir():
+            raise CommandError(f"--save-as {args.save_as!r}: folder {str(folder)!r} does "
+                               f"not exist")
+        if save_as.is_dir():
+            raise CommandError(f"--save-as {args.save_as!r}: is a folder, expected a file")
+    if kind != "example" and not Path(args.input).is_file():
+        what = "rig" if kind == "rig" else "mesh"
+        raise CommandError(f"{args.input!r}: {what} file not found")
+    return kind, save_as
+
+
+def _targets(kind: str, path: str | None, save_as):
+    """Where the page may write: (rig file, pose folder); None where saving is off.
+
+    --save-as: the rig goes there and poses into its folder. Otherwise poses go into
+    the input's folder and the rig beside the input: RIG.npz as RIG-edited.npz (never
+    the input itself), MESH as MESH.npz; an example without --save-as saves nothing.
+    """
+    from pathlib import Path
+
+    if save_as is not None:
+        return save_as, (save_as.parent if str(save_as.parent) else Path("."))
+    if kind == "example":
+        return None, None
+    p = Path(path)
+    stem = p.stem + ("-edited" if kind == "rig" else "")
+    return p.with_name(stem + ".npz"), (p.parent if str(p.parent) else Path("."))
+
+
+def _example(name: str):
+    """A built-in rig: (rig, extras for the page)."""
+    import numpy as np
+
+    from ..rig import build_rig
+
+    if name == "picture":
+        from ..demo.models import picture_2d
+
+        m = picture_2d()
+        rig = build_rig(m.V, m.sk, F=m.F, bone="bbw", endpoint="bbw", remesh=False)
+        extras = {"UV": np.asarray(m.extra["uv"], dtype=np.float32),
+                  "texture": np.asarray(m.extra["texture"], dtype=np.uint8)}
+        return rig, extras
+    from ..shapes import arm
+
+    m = arm()
+    return build_rig(m.V, m.sk, F=m.F, bone="heat", endpoint="heat"), {}
+
+
+def _rig_from_files(args: argparse.Namespace):
+    """MESH SKELETON rigged as ``stbs rig`` does (outlines with its default options)."""
+    from ..geometry import polygons_area
+    from ..io import read_mesh, read_skeleton
+    from ..meshing import triangulate_2d
+    from ._errors import CommandError
+    from .rig import (
+        OUTLINE_EXTENSIONS,
+        OUTLINE_TRIANGLES,
+        _Stages,
+        build,
+        read_outline,
+        resolve_tol,
+    )
+
+    bone = args.bone or "bbw"
+    endpoint = args.endpoint or "bbw"
+    tets = args.tets or "auto"
+    tol = resolve_tol(args.tol, bone, endpoint)
+    st = _Stages()
+    outline = args.input.lower().endswith(OUTLINE_EXTENSIONS)
+    if outline:
+        if bone != "bbw":
+            raise CommandError(f"--bone {bone} needs a 3D surface; an outline "
+                               f"({args.input!r}) is rigged with --bone bbw")
+        polygons = read_outline(st, args.input, threshold=0.5, invert=False)
+        sk = st.run("read skeleton", read_skeleton, args.skeleton, dim=2)
+        max_area = max(polygons_area(polygons), 1e-300) / OUTLINE_TRIANGLES
+        tri = st.run("triangulate (bones inside)", triangulate_2d, polygons, sk,
+                     max_area=max_area, clip_skeleton=args.clip_skeleton)
+        V, F, T = tri.V, tri.F, None
+    else:
+        mesh = st.run("read mesh", read_mesh, args.input)
+        V, F, T = mesh.V, mesh.F, mesh.T
+        sk = st.run("read skeleton", read_skeleton, args.skeleton, dim=V.shape[1])
+    return build(st, V, F, T, sk, bone=bone, endpoint=endpoint, tets=tets,
+                 mesh_name=args.input, tol=tol,
+                 clip_skeleton=args.clip_skeleton and not outline, meshed=outline)
+
+
+def _serve(args: argparse.Namespace, kind: str, save_as):
+    """The rig and its server, ready to serve (warnings reported as they happen)."""
+    import errno
+    from pathlib import Path
+
+    from ..io import load_rig
+    from ..viewer import ViewerServer
+    from ._errors import CommandError
+
+    extras: dict = {}
+    if kind == "example":
+        name = args.example or EXAMPLES[0]
+        rig, extras = _example(name)
+    elif kind == "rig":
+        name = Path(args.input).stem
+        rig = load_rig(args.input)
+    else:
+        name = Path(args.input).stem
+        rig = _rig_from_files(args)
+    rig_target, pose_folder = _targets(kind, args.input, save_as)
+    try:
+        return ViewerServer(rig, port=args.port, rig_target=rig_target,
+                            pose_folder=pose_folder, name=name, extras=extras)
+    except OSError as exc:
+        why = exc.strerror or str(exc)
+        if exc.errno == errno.EADDRINUSE:
+            why = "the port is in use"
+        raise CommandError(f"--port {args.port}: cannot listen on 127.0.0.1:{args.port} "
+                           f"({why})") from None
+
+
+def run(args: argparse.Namespace) -> int:
+    import warnings
+
+    from ._main import _flush
+
+    kind, save_as = _check(args)
+    # The server runs until Ctrl-C: say the warnings of loading and rigging now, not
+    # when the command ends.
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", UserWarning)
+        server = _serve(args, kind, save_as)
+    _flush(caught)
+    try:
+        print(server.url, flush=True)
+        if not args.no_browser:
+            import webbrowser
+
+            if not webbrowser.open(server.url):
+                print("stbs: warning: no browser could be opened; open the URL above",
+                      file=sys.stderr, flush=True)
+        server.serve_forever()
+    except KeyboardInterrupt:
+        print("stbs view: stopped", file=sys.stderr, flush=True)
+    finally:
+        server.shutdown()
+    return 0

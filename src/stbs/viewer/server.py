@@ -1,0 +1,648 @@
+"""The viewer's HTTP server: the page, its assets and the rig data API, on 127.0.0.1 only.
+
+Standard library only (:class:`http.server.ThreadingHTTPServer`). The rules every
+request goes through, in this order (docs/viewer.md has the full API):
+
+1. **Host**: the ``Host`` header must be ``127.0.0.1:PORT`` or ``localhost:PORT``
+   (one header, this server's port), else 403: a page on another origin whose name
+   was rebound to 127.0.0.1 (DNS rebinding) sends its own name.
+2. **Method**: GET or POST, else 405.
+3. **Page and assets** (``GET /`` and ``GET /static/<path>``) need no token. The path
+   is taken as sent, never decoded: each segment is letters, digits, ``_``, ``-`` and
+   dots, not starting with a dot, so ``..``, percent escapes (``%2e%2e``, ``%2f``,
+   ``%252e``), backslashes, NUL, empty segments and hidden files are not found
+   (404); the file's real path (symlinks resolved) must lie inside the static
+   folder, so a symlink out is not found either.
+4. **Everything else** carries the run's token, as the query parameter ``token=`` or
+   the header ``X-Stbs-Token`` (compared in constant time), else 403; a request that
+   sends an ``Origin`` must come from this server's own origin, else 403. Only then
+   is an unknown path 404, so nothing about the API is learnt without the token.
+5. **Bodies** are read only with a ``Content-Length`` (chunked bodies: 411) of at most
+   ``max_body`` bytes (else 413, without reading it).
+
+Writes (``/api/save-pose``, ``/api/save-rig``) go to a temporary file then rename
+(:mod:`stbs.io`'s atomic writers), only into the folder and the file the server was
+given (``pose_folder``, ``rig_target``); the client names at most a bare ``.json``
+file name in that folder.
+"""
+
+from __future__ import annotations
+
+import hmac
+import json
+import os
+import re
+import secrets
+import socketserver
+import sys
+import threading
+from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
+from pathlib import Path
+from typing import Any
+from urllib.parse import parse_qs
+
+import numpy as np
+
+from ..io import pose_to_dict, read_pose, save_rig, write_pose
+from ..pose import Pose
+from ..rig import Rig
+from .payload import RigPayload
+
+__all__ = ["ViewerServer", "STATIC_DIR", "MAX_BODY", "HOST", "TOKEN_HEADER",
+           "POSE_NAME", "static_path"]
+
+#: The only address the server listens on.
+HOST = "127.0.0.1"
+#: The package's own page and assets.
+STATIC_DIR = Path(__file__).resolve().parent / "static"
+#: Largest request body accepted, in bytes (64 MiB).
+MAX_BODY = 64 * 1024 * 1024
+#: The header that may carry the token instead of the ``token=`` query parameter.
+TOKEN_HEADER = "X-Stbs-Token"
+#: A pose file name the client may give ``/api/save-pose``: a bare ``.json`` name.
+POSE_NAME = re.compile(r"[A-Za-z0-9_][A-Za-z0-9_.-]{0,99}\.json\Z")
+
+_SEGMENT = re.compile(r"[A-Za-z0-9_-][A-Za-z0-9_.-]*\Z")
+_ARRAY = re.compile(r"/api/rig/([A-Za-z0-9]+)\.bin\Z")
+_TYPES = {".html": "text/html; charset=utf-8", ".js": "text/javascript; charset=utf-8",
+          ".mjs": "text/javascript; charset=utf-8", ".css": "text/css; charset=utf-8",
+          ".json": "application/json", ".map": "application/json",
+          ".wasm": "application/wasm", ".png": "image/png", ".jpg": "image/jpeg",
+          ".svg": "image/svg+xml", ".ico": "image/x-icon", ".txt": "text/plain; charset=utf-8",
+          ".glsl": "text/plain; charset=utf-8"}
+_PAGE_POLICY = ("default-src 'self'; img-src 'self' data: blob:; style-src 'self' "
+                "'unsafe-inline'; connect-src 'self'; frame-ancestors 'none'; base-uri 'none'")
+
+
+def static_path(static_dir: str | os.PathLike, rel: str) -> Path | None:
+    """The file ``rel`` (a path as sent, ``/``-separated, not decoded) of the static folder.
+
+    None unless every segment is a plain name (letters, digits, ``_``, ``-``, dots; no
+    leading dot) and the real path of the file, symlinks resolved, is a regular file
+    inside the real path of ``static_dir``.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> from pathlib import Path
+    >>> d = Path(tempfile.mkdtemp())
+    >>> _ = (d / "app.js").write_text("")
+    >>> static_path(d, "app.js") == (d / "app.js").resolve()
+    True
+    >>> [static_path(d, r) for r in ("../app.js", "%2e%2e/app.js", "a\\\\b", "", ".hidden")]
+    [None, None, None, None, None]
+    """
+    segments = rel.split("/")
+    if not all(_SEGMENT.match(s) for s in segments):
+        return None
+    root = Path(os.path.realpath(static_dir))
+    p = Path(os.path.realpath(root.joinpath(*segments)))
+    if not p.is_relative_to(root) or p == root or not p.is_file():
+        return None
+    return p
+
+
+class _Refused(Exception):
+    """An answer other than 200: the status and a one-line message (a JSON body)."""
+
+    def __init__(self, status: int, message: str, headers: dict | None = None):
+        super().__init__(message)
+        self.status = int(status)
+        self.message = " ".join(str(message).split())
+        self.headers = headers or {}
+
+
+def _one_line(exc: BaseException) -> str:
+    return " ".join(str(exc).split()) or type(exc).__name__
+
+
+class _HTTPServer(ThreadingHTTPServer):
+    daemon_threads = True
+    viewer: ViewerServer
+
+    def server_bind(self) -> None:
+        # HTTPServer.server_bind looks the address up in DNS (getfqdn); 127.0.0.1 needs none.
+        socketserver.TCPServer.server_bind(self)
+        self.server_name, self.server_port = self.server_address[:2]
+
+
+class ViewerServer:
+    """The ``stbs view`` server for one rig: the page, its assets and the rig API.
+
+    Listens on 127.0.0.1 only, on ``port`` (0: a free port), with a fresh token
+    (:func:`secrets.token_hex`, 32 hex characters) made for each server. Nothing is
+    served until :meth:`serve_forever` (blocking) or :meth:`start` (a thread).
+
+    Parameters
+    ----------
+    rig : Rig
+        The rig (checked as :class:`stbs.viewer.payload.RigPayload` checks it).
+    port : int, keyword-only
+        0 (default: a free port chosen by the system) or 1..65535.
+    static_dir : path, keyword-only
+        The page (``index.html``) and its assets; default the package's
+        :data:`STATIC_DIR`.
+    rig_target : path, keyword-only
+        Where ``POST /api/save-rig`` writes the rig (a ``.npz`` file whose folder
+        exists); None: saving the rig is refused (409).
+    pose_folder : path, keyword-only
+        The folder ``POST /api/save-pose`` writes pose files into; None: refused (409).
+    name : str, keyword-only
+        The rig's name, shown by the page and used for default pose file names
+        (``<name>-pose-001.json``, ...); default ``"rig"``.
+    extras : mapping, keyword-only
+        Further arrays to serve (see :class:`RigPayload`).
+    max_body : int, keyword-only
+        Largest request body, in bytes (default :data:`MAX_BODY`).
+    verbose : bool, keyword-only
+        Log each request (method, path without its query, status) on stderr.
+
+    Raises
+    ------
+    ValueError
+        A bad port or target, or weights the viewer cannot use.
+    OSError
+        The port is taken.
+
+    Examples
+    --------
+    >>> import http.client, json
+    >>> import numpy as np
+    >>> import stbs
+    >>> from stbs.viewer import ViewerServer
+    >>> rig = stbs.Rig(V=[[0, 0.1], [1, 0.1], [1, -0.1]], F=[[0, 2, 1]],
+    ...                C=[[0, 0], [1, 0]], BE=[[0, 1]], W=np.ones((3, 1)))
+    >>> with ViewerServer(rig) as srv:
+    ...     c = http.client.HTTPConnection(*srv.server_address, timeout=10)
+    ...     c.request("GET", "/api/rig", headers={"X-Stbs-Token": srv.token})
+    ...     info = json.loads(c.getresponse().read())
+    ...     c.close()
+    >>> info["vertices"], info["bones"], info["dim"]
+    (3, 1, 2)
+    """
+
+    def __init__(self, rig: Rig, *, port: int = 0, static_dir: str | os.PathLike | None = None,
+                 rig_target: str | os.PathLike | None = None,
+                 pose_folder: str | os.PathLike | None = None, name: str = "rig",
+                 extras: dict | None = None, max_body: int = MAX_BODY, verbose: bool = False):
+        if isinstance(port, bool) or not isinstance(port, int) or not 0 <= port <= 65535:
+            raise ValueError(f"port must be an integer in 0..65535 (0: any free port), "
+                             f"got {port!r}")
+        if isinstance(max_body, bool) or not isinstance(max_body, int) or max_body < 0:
+            raise ValueError(f"max_body must be a non-negative integer, got {max_body!r}")
+        self.payload = RigPayload(rig, extras=extras)
+        self.static_dir = Path(STATIC_DIR if static_dir is None else static_dir)
+        self.rig_target = None if rig_target is None else Path(rig_target)
+        if self.rig_target is not None and (self.rig_target.suffix.lower() != ".npz"
+                                            or not self.rig_target.parent.is_dir()):
+            raise ValueError(f"rig_target must be a .npz file in an existing folder, got "
+                             f"{str(self.rig_target)!r}")
+        self.pose_folder = None if pose_folder is None else Path(pose_folder)
+        if self.pose_folder is not None and not self.pose_folder.is_dir():
+            raise ValueError(f"pose_folder must be an existing folder, got "
+                             f"{str(self.pose_folder)!r}")
+        self.name = str(name)
+        self.max_body = max_body
+        self.verbose = bool(verbose)
+        self.token = secrets.token_hex(16)
+        self.pose = Pose.rest(rig.skeleton)
+        self._pose_obj: dict = pose_to_dict(self.pose)
+        self._lock = threading.Lock()
+        self._thread: threading.Thread | None = None
+        self._serving = False
+        self._httpd = _HTTPServer((HOST, port), _Handler)
+        self._httpd.viewer = self
+        self.port = int(self._httpd.server_address[1])
+
+    # ------------------------------------------------------------------ lifecycle
+    @property
+    def rig(self) -> Rig:
+        """The rig served now (replaced by ``POST /api/save-rig`` with new weights)."""
+        return self.payload.rig
+
+    @property
+    def server_address(self) -> tuple[str, int]:
+        """``("127.0.0.1", port)``: where the server listens."""
+        host, port = self._httpd.server_address[:2]
+        return str(host), int(port)
+
+    @property
+    def url(self) -> str:
+        """The page's URL with the token: ``http://127.0.0.1:PORT/?token=TOKEN``."""
+        return f"http://{HOST}:{self.port}/?token={self.token}"
+
+    def serve_forever(self) -> None:
+        """Serve until :meth:`shutdown` (from another thread) or KeyboardInterrupt."""
+        self._serving = True
+        try:
+            self._httpd.serve_forever(poll_interval=0.2)
+        finally:
+            self._serving = False
+
+    def start(self) -> ViewerServer:
+        """Serve in a daemon thread; returns ``self``."""
+        if self._thread is None:
+            self._serving = True
+            self._thread = threading.Thread(target=self._httpd.serve_forever,
+                                            kwargs={"poll_interval": 0.05},
+                                            name=f"stbs-view-{self.port}", daemon=True)
+            self._thread.start()
+        return self
+
+    def shutdown(self) -> None:
+        """Stop serving (waits for the serving loop to end) and close the socket."""
+        if self._serving:
+            self._httpd.shutdown()
+            self._serving = False
+        if self._thread is not None:
+            self._thread.join(timeout=10)
+            self._thread = None
+        self._httpd.server_close()
+
+    close = shutdown
+
+    def __enter__(self) -> ViewerServer:
+        return self.start()
+
+    def __exit__(self, *exc) -> None:
+        self.shutdown()
+
+    # ------------------------------------------------------------------ the API
+    def info(self) -> dict:
+        info = self.payload.info()
+        info.update(name=self.name, save={"rig": self.rig_target is not None,
+                                          "pose": self.pose_folder is not None})
+        return info
+
+    def get_pose(self) -> dict:
+        with self._lock:
+            return dict(self._pose_obj)
+
+    def set_pose(self, obj: Any) -> dict:
+        pose = self._read_pose(obj)
+        with self._lock:
+            self.pose = pose
+            self._pose_obj = self._canonical(pose, obj)
+            return dict(self._pose_obj)
+
+    def _read_pose(self, obj: Any) -> Pose:
+        if not isinstance(obj, dict):
+            raise _Refused(400, f"pose: expected a JSON object (a pose in either form of "
+                                f"the pose files), found {type(obj).__name__}")
+        try:
+            return read_pose(obj, self.rig.skeleton)
+        except (ValueError, TypeError) as exc:
+            raise _Refused(400, _one_line(exc)) from None
+
+    @staticmethod
+    def _canonical(pose: Pose, obj: Any) -> dict:
+        try:
+            return pose_to_dict(pose)
+        except ValueError:      # not expected for a pose read from a file: keep it as sent
+            return dict(obj)
+
+    def save_pose(self, obj: Any) -> dict:
+        if not isinstance(obj, dict):
+            raise _Refused(400, "request body: expected a JSON object (a pose, or "
+                                '{"pose": ..., "name": "NAME.json", "overwrite": false})')
+        name, overwrite = None, False
+        if "pose" in obj:
+            extra = sorted(set(obj) - {"pose", "name", "overwrite"})
+            if extra:
+                raise _Refused(400, f"request body: unexpected key {extra[0]!r}; expected "
+                                    "pose, name, overwrite")
+            name, overwrite = obj.get("name"), obj.get("overwrite", False)
+            obj = obj["pose"]
+            if not isinstance(overwrite, bool):
+                raise _Refused(400, f'"overwrite": expected true or false, got {overwrite!r}')
+            if name is not None and not (isinstance(name, str) and POSE_NAME.match(name)):
+                raise _Refused(400, f'"name": expected a bare file name ending in .json '
+                                    f'(letters, digits, _ - and dots, no folder), got '
+                                    f'{json.dumps(name)[:80]}')
+        pose = self._read_pose(obj)
+        if self.pose_folder is None:
+            raise _Refused(409, "saving poses is off: this rig has no folder of its own "
+                                "(start stbs view with --save-as PATH)")
+        folder = self.pose_folder
+        with self._lock:
+            if name is None:
+                name = next((f"{self.name}-pose-{k:03d}.json" for k in range(1, 1000)
+                             if not os.path.lexists(folder / f"{self.name}-pose-{k:03d}.json")),
+                            None)
+                if name is None:
+                    raise _Refused(409, f"{self.name}-pose-001.json .. -999.json all exist in "
+                                        f"{str(folder)!r}; give a name")
+            target = folder / name
+            if os.path.islink(target) or (os.path.lexists(target) and not target.is_file()):
+                raise _Refused(403, f"{name!r}: exists and is not a plain file; not replaced")
+            if target.exists() and not overwrite:
+                raise _Refused(409, f"{name!r} exists in {str(folder)!r}; send "
+                                    '"overwrite": true to replace it')
+            try:
+                write_pose(target, pose)
+            except OSError as exc:
+                raise _Refused(500, f"could not write {str(target)!r}: "
+                                    f"{exc.strerror or _one_line(exc)}") from None
+        return {"path": str(target), "name": name}
+
+    def save_rig(self, W=None, E=None) -> dict:
+        if self.rig_target is None:
+            raise _Refused(409, "saving the rig is off: start stbs view with --save-as PATH")
+        with self._lock:
+            rig = self.rig
+            if W is not None or E is not None:
+                rig = self._with_weights(rig, W, E)
+                try:
+                    payload = RigPayload(rig, extras=self.payload.extras)
+                except (ValueError, TypeError) as exc:
+                    raise _Refused(400, _one_line(exc)) from None
+            try:
+                save_rig(self.rig_target, rig)
+            except OSError as exc:
+                raise _Refused(500, f"could not write {str(self.rig_target)!r}: "
+                                    f"{exc.strerror or _one_line(exc)}") from None
+            if W is not None or E is not None:
+                self.payload = payload
+        return {"path": str(self.rig_target), "vertices": int(len(rig.V)),
+                "bones": int(rig.skeleton.n_bones), "has_E": rig.E is not None}
+
+    @staticmethod
+    def _with_weights(rig: Rig, W, E) -> Rig:
+        from .._checks import PARTITION_TOL
+
+        n, b = len(rig.V), rig.skeleton.n_bones
+        changes = {}
+        for key, X in (("W", W), ("E", E)):
+            if X is None:
+                continue
+            X = np.asarray(X, dtype=np.float64)
+            if X.shape != (n, b):
+                raise _Refused(400, f"{key} must have shape ({n}, {b}) (vertices, bones), got "
+                                    f"{X.shape}")
+            if not np.isfinite(X).all():
+                raise _Refused(400, f"{key} must be finite")
+            lo, hi = float(X.min(initial=0)), float(X.max(initial=0))
+            if lo < 0 or (key == "E" and hi > 1):
+                raise _Refused(400, f"{key} must lie in {'[0, 1]' if key == 'E' else '[0, inf)'}"
+                                    f", got {lo if lo < 0 else hi:.6g}")
+            if key == "W":
+                off = np.abs(X.sum(axis=1) - 1.0)
+                if off.max(initial=0) > PARTITION_TOL:
+                    i = int(np.argmax(off))
+                    raise _Refused(400, f"W rows must sum to 1, row {i} sums to "
+                                        f"{X[i].sum():.6g}")
+            changes[key] = X
+        try:
+            return rig.replace(**changes)
+        except (ValueError, TypeError) as exc:
+            raise _Refused(400, _one_line(exc)) from None
+
+
+class _Handler(BaseHTTPRequestHandler):
+    server: _HTTPServer
+    server_version = "stbs-view"
+    sys_version = ""
+    protocol_version = "HTTP/1.1"
+    timeout = 30    # seconds a connection may sit idle or dribble its request
+
+    # ---------------------------------------------------------------- plumbing
+    def version_string(self) -> str:
+        return self.server_version
+
+    def __getattr__(self, name: str):
+        # Every method other than GET and POST (PUT, HEAD, OPTIONS, FOO, ...) gets a 405.
+        if name.startswith("do_"):
+            return lambda: self._dispatch(name[3:])
+        raise AttributeError(name)
+
+    def do_GET(self) -> None:
+        self._dispatch("GET")
+
+    def do_POST(self) -> None:
+        self._dispatch("POST")
+
+    def log_request(self, code: Any = "-", size: Any = "-") -> None:
+        if self.server.viewer.verbose:   # never the query: it may hold the token
+            path = getattr(self, "path", "").split("?", 1)[0]
+            print(f"stbs view: {self.command} {path} {int(code)}", file=sys.stderr)
+
+    def log_message(self, format: str, *args: Any) -> None:
+        pass
+
+    def _send(self, status: int, body: bytes, content_type: str, *,
+              headers: dict | None = None) -> None:
+        self.send_response(status)
+        self.send_header("Content-Type", content_type)
+        self.send_header("Content-Length", str(len(body)))
+        self.send_header("Cache-Control", "no-store")
+        self.send_header("X-Content-Type-Options", "nosniff")
+        self.send_header("Referrer-Policy", "no-referrer")
+        self.send_header("Cross-Origin-Resource-Policy", "same-origin")
+        for k, v in (headers or {}).items():
+            self.send_header(k, v)
+        if self.close_connection:
+            self.send_header("Connection", "close")
+        self.end_headers()
+        if self.command != "HEAD":
+            self.wfile.write(body)
+
+    def _json(self, obj: Any, status: int = 200, headers: dict | None = None) -> None:
+        body = json.dumps(obj, allow_nan=False, separators=(",", ":")).encode()
+        self._send(status, body, "application/json", headers=headers)
+
+    def _dispatch(self, method: str) -> None:
+        self._body_read = False
+        try:
+            self._route(method)
+        except _Refused as r:
+            self._refuse(r)
+        except (BrokenPipeError, ConnectionResetError):
+            self.close_connection = True
+        except Exception as exc:    # a bug: answer 500, say it once on stderr
+            print(f"stbs view: internal error on {method} "
+                  f"{getattr(self, 'path', '').split('?', 1)[0]}: {type(exc).__name__}: "
+                  f"{_one_line(exc)}", file=sys.stderr)
+            self._refuse(_Refused(500, f"internal error: {type(exc).__name__}"))
+
+    def _refuse(self, r: _Refused) -> None:
+        if not self._body_read and self._has_body():
+            self.close_connection = True        # the unread body would be the next request
+        try:
+            self._json({"error": r.message, "status": r.status}, r.status, r.headers)
+        except (BrokenPipeError, ConnectionResetError):
+            self.close_connection = True
+
+    def _has_body(self) -> bool:
+        cl = self.headers.get("Content-Length")
+        return "Transfer-Encoding" in self.headers or (cl is not None and cl.strip() != "0")
+
+    # ---------------------------------------------------------------- the rules
+    def _check_host(self) -> None:
+        port = self.server.viewer.port
+        hosts = self.headers.get_all("Host") or []
+        allowed = (f"127.0.0.1:{port}", f"localhost:{port}")
+        if len(hosts) != 1 or hosts[0].strip().lower() not in allowed:
+            got = "none" if not hosts else ", ".join(repr(h) for h in hosts)
+            raise _Refused(403, f"Host header: expected 127.0.0.1:{port} or localhost:{port}, "
+                                f"got {got}")
+
+    def _check_token(self, query: str) -> None:
+        viewer = self.server.viewer
+        given = self.headers.get_all(TOKEN_HEADER) or []
+        if not given:
+            try:
+                given = parse_qs(query, keep_blank_values=True,
+                                 max_num_fields=20).get("token", [])
+            except ValueError:
+                given = []
+        if len(given) != 1 or not hmac.compare_digest(given[0].encode("utf-8", "replace"),
+                                                      viewer.token.encode()):
+            raise _Refused(403, f"this request needs the token of this stbs view run (query "
+                                f"token= or header {TOKEN_HEADER}, from the URL it printed)")
+        origin = self.headers.get_all("Origin") or []
+        port = viewer.port
+        if origin and (len(origin) != 1 or origin[0].strip().lower() not in
+                       (f"http://127.0.0.1:{port}", f"http://localhost:{port}")):
+            raise _Refused(403, f"Origin {origin[0]!r}: requests come from the viewer's own "
+                                "page only")
+
+    def _body(self) -> bytes:
+        self._body_read = True
+        if "Transfer-Encoding" in self.headers:
+            self.close_connection = True
+            raise _Refused(411, "request body: send it with a Content-Length (no chunked "
+                                "transfer encoding)")
+        cl = self.headers.get("Content-Length")
+        if cl is None:
+            return b""
+        cl = cl.strip()
+        if not (cl.isascii() and cl.isdigit()):
+            self.close_connection = True
+            raise _Refused(400, f"Content-Length: expected a number of bytes, got {cl!r}")
+        n = int(cl)
+        limit = self.server.viewer.max_body
+        if n > limit:
+            self.close_connection = True
+            raise _Refused(413, f"request body of {n} bytes: the limit is {limit} bytes")
+        data = self.rfile.read(n)
+        if len(data) != n:
+            self.close_connection = True
+            raise _Refused(400, f"request body: expected {n} bytes, got {len(data)}")
+        return data
+
+    def _json_body(self) -> Any:
+        data = self._body()
+        try:
+            text = data.decode("utf-8")
+        except UnicodeDecodeError as exc:
+            raise _Refused(400, f"request body: expected UTF-8 JSON text, found an "
+                                f"undecodable byte at offset {exc.start}") from None
+        try:
+            return json.loads(text)
+        except json.JSONDecodeError as exc:
+            raise _Refused(400, f"request body, line {exc.lineno}, column {exc.colno}: not "
+                                f"valid JSON ({exc.msg})") from None
+        except RecursionError:
+            raise _Refused(400, "request body: JSON nested too deeply") from None
+
+    # ---------------------------------------------------------------- routes
+    def _route(self, method: str) -> None:
+        self._check_host()
+        if method not in ("GET", "POST"):
+            raise _Refused(405, f"method {method} not allowed: GET or POST",
+                           {"Allow": "GET, POST"})
+        target = self.path
+        if not target.startswith("/"):
+            raise _Refused(400, "request target: expected a path starting with /")
+        path, _, query = target.partition("?")
+        if path == "/" or path.startswith("/static/"):
+            if method != "GET":
+                raise _Refused(405, f"{path}: GET only", {"Allow": "GET"})
+            return self._static("index.html" if path == "/" else path[len("/static/"):])
+        self._check_token(query)
+        viewer = self.server.viewer
+        routes = {"/api/rig": ("GET",), "/api/pose": ("GET", "POST"),
+                  "/api/save-pose": ("POST",), "/api/save-rig": ("POST",)}
+        m = _ARRAY.match(path)
+        allowed = ("GET",) if m else routes.get(path)
+        if allowed is None:
+            raise _Refused(404, f"{path}: not found")
+        if method not in allowed:
+            raise _Refused(405, f"{path}: {' or '.join(allowed)} only",
+                           {"Allow": ", ".join(allowed)})
+        if m:
+            return self._array(m.group(1))
+        if path == "/api/rig":
+            return self._json(viewer.info())
+        if path == "/api/pose":
+            if method == "GET":
+                return self._json(viewer.get_pose())
+            return self._json({"pose": viewer.set_pose(self._json_body())})
+        if path == "/api/save-pose":
+            return self._json(viewer.save_pose(self._json_body()))
+        return self._json(viewer.save_rig(*self._weights_body()))
+
+    def _static(self, rel: str) -> None:
+        p = static_path(self.server.viewer.static_dir, rel)
+        if p is None:
+            raise _Refused(404, "not found")
+        try:
+            body = p.read_bytes()
+        except OSError:
+            raise _Refused(404, "not found") from None
+        kind = _TYPES.get(p.suffix.lower(), "application/octet-stream")
+        headers = {}
+        if kind.startswith("text/html"):
+            headers = {"Content-Security-Policy": _PAGE_POLICY, "X-Frame-Options": "DENY"}
+        self._send(200, body, kind, headers=headers)
+
+    def _array(self, name: str) -> None:
+        try:
+            a = self.server.viewer.payload.array(name)
+        except KeyError:
+            raise _Refused(404, f"no array {name!r} for this rig; it has "
+                                f"{', '.join(self.server.viewer.payload.names)}") from None
+        shape = ",".join(str(s) for s in a.shape)
+        self._send(200, a.tobytes(), "application/octet-stream",
+                   headers={"X-Stbs-Dtype": a.dtype.name, "X-Stbs-Shape": shape,
+                            "X-Stbs-Byte-Order": "little"})
+
+    def _weights_body(self) -> tuple:
+        """New ``(W, E)`` for save-rig: none (empty body), JSON, or raw little-endian."""
+        kind = (self.headers.get("Content-Type") or "").split(";")[0].strip().lower()
+        if kind == "application/octet-stream":
+            return self._binary_weights(self._body())
+        obj = self._json_body() if self._has_body() else {}
+        if not isinstance(obj, dict) or set(obj) - {"W", "E"}:
+            raise _Refused(400, 'request body: expected a JSON object {"W": [[...]], "E": '
+                                "[[...]]} (both optional), or raw weights with "
+                                "Content-Type application/octet-stream")
+        out = []
+        for key in ("W", "E"):
+            X = obj.get(key)
+            if X is not None:
+                try:
+                    X = np.array(X, dtype=np.float64)
+                except (ValueError, TypeError):
+                    raise _Refused(400, f'"{key}": expected rows of numbers') from None
+            out.append(X)
+        return tuple(out)
+
+    def _binary_weights(self, data: bytes) -> tuple:
+        names = [s.strip() for s in (self.headers.get("X-Stbs-Arrays") or "W").split(",")]
+        if not names or len(set(names)) != len(names) or set(names) - {"W", "E"}:
+            raise _Refused(400, f"X-Stbs-Arrays: expected W, E or W,E, got {names!r}")
+        dtype = (self.headers.get("X-Stbs-Dtype") or "float32").strip().lower()
+        if dtype not in ("float32", "float64"):
+            raise _Refused(400, f"X-Stbs-Dtype: expected float32 or float64, got {dtype!r}")
+        rig = self.server.viewer.rig
+        n, b = len(rig.V), rig.skeleton.n_bones
+        dt = np.dtype(dtype).newbyteorder("<")
+        want = len(names) * n * b * dt.itemsize
+        if len(data) != want:
+            raise _Refused(400, f"request body: expected {want} bytes ({', '.join(names)}: "
+                                f"{n} x {b} {dtype} each), got {len(data)}")
+        flat = np.frombuffer(data, dtype=dt).astype(np.float64).reshape(len(names), n, b)
+        got = dict(zip(names, flat, strict=True))
+        return got.get("W"), got.get("E")
+
