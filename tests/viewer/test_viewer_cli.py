@@ -1,0 +1,225 @@
+"""``stbs view``: one URL line on stdout, a server that answers it, Ctrl-C exits 0 with one
+line; bad inputs are one line on stderr and exit status 2. The server runs in a
+subprocess (Ctrl-C is SIGINT), on 127.0.0.1 only, with bounded waits."""
+
+from __future__ import annotations
+
+import json
+import re
+import selectors
+import signal
+import socket
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+from viewer_client import bar_rig
+
+import stbs
+from stbs.cli import main
+from stbs.io import load_rig, save_rig, write_mesh, write_tgf
+
+URL = re.compile(r"^http://127\.0\.0\.1:(\d+)/\?token=([0-9a-f]{32,})$")
+MAIN = "import sys; from stbs.cli import main; sys.exit(main())"
+START_S = 120     # rigging an example or a mesh, and the imports, on two busy cores
+STOP_S = 30
+
+
+class View:
+    """``stbs view ARGS --no-browser`` in a subprocess, stopped by SIGINT."""
+
+    def __init__(self, *args, cwd):
+        self.p = subprocess.Popen([sys.executable, "-c", MAIN, "view", "--no-browser",
+                                   *map(str, args)], cwd=cwd, text=True,
+                                  stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+        with selectors.DefaultSelector() as sel:
+            sel.register(self.p.stdout, selectors.EVENT_READ)
+            ready = sel.select(timeout=START_S)
+        if not ready:
+            self.kill()
+            pytest.fail(f"stbs view printed nothing in {START_S} s")
+        self.line = self.p.stdout.readline()
+        m = URL.match(self.line.rstrip("\n"))
+        if m is None:
+            out, err = self.kill()
+            pytest.fail(f"not a URL line: {self.line!r}; stderr: {err!r}")
+        self.port, self.token = int(m[1]), m[2]
+
+    def get(self, path, *, method="GET", body=None, headers=None):
+        import http.client
+
+        c = http.client.HTTPConnection("127.0.0.1", self.port, timeout=10)
+        try:
+            c.request(method, path, body=body, headers={"X-Stbs-Token": self.token,
+                                                        **(headers or {})})
+            r = c.getresponse()
+            return r.status, r.read()
+        finally:
+            c.close()
+
+    def stop(self):
+        """SIGINT (Ctrl-C); the exit status, the rest of stdout and stderr."""
+        self.p.send_signal(signal.SIGINT)
+        try:
+            out, err = self.p.communicate(timeout=STOP_S)
+        except subprocess.TimeoutExpired:
+            self.kill()
+            pytest.fail(f"stbs view did not stop in {STOP_S} s after SIGINT")
+        return self.p.returncode, out, err
+
+    def kill(self):
+        self.p.kill()
+        return self.p.communicate(timeout=STOP_S)
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        if self.p.poll() is None:
+            self.kill()
+
+
+@pytest.fixture
+def rig_file(tmp_path):
+    rig = bar_rig()
+    path = tmp_path / "bar.npz"
+    save_rig(path, rig)
+    return path
+
+
+def test_view_rig_prints_one_url_serves_it_and_stops_on_ctrl_c(rig_file, tmp_path):
+    before = rig_file.read_bytes()
+    with View(rig_file, cwd=tmp_path) as v:
+        status, body = v.get("/api/rig")
+        info = json.loads(body)
+        assert status == 200 and info["vertices"] == 74 and info["name"] == "bar"
+        assert info["save"] == {"rig": True, "pose": True}
+        status, body = v.get("/api/rig/W4.bin")
+        W4 = np.frombuffer(body, dtype="<f4").reshape(74, 4)
+        np.testing.assert_allclose(W4.sum(axis=1), 1, atol=1e-6)
+        assert v.get("/api/rig", headers={"X-Stbs-Token": "0" * 32})[0] == 403
+        # the rig is saved beside the input, never over it; poses into its folder
+        status, body = v.get("/api/save-rig", method="POST")
+        assert status == 200 and json.loads(body)["path"] == str(tmp_path / "bar-edited.npz")
+        status, body = v.get("/api/save-pose", method="POST", body=b'{"stretch": {"0": 2}}')
+        assert status == 200 and json.loads(body)["path"] == str(tmp_path / "bar-pose-001.json")
+        code, out, err = v.stop()
+    assert code == 0 and out == ""                       # the URL was the only line
+    assert err == "stbs view: stopped\n"
+    assert rig_file.read_bytes() == before
+    np.testing.assert_array_equal(load_rig(tmp_path / "bar-edited.npz").W, bar_rig().W)
+    with View(rig_file, cwd=tmp_path) as w:
+        assert w.token != v.token                         # a new token each run
+        w.stop()
+
+
+def test_view_mesh_and_skeleton_rigs_first_and_saves_as_asked(tmp_path):
+    rig = bar_rig()
+    write_mesh(tmp_path / "bar.obj", rig.V, rig.F)
+    write_tgf(tmp_path / "bar.tgf", rig.C, rig.BE)
+    (tmp_path / "out").mkdir()
+    with View(tmp_path / "bar.obj", tmp_path / "bar.tgf", "--bone", "heat", "--endpoint",
+              "projection", "--save-as", tmp_path / "out" / "mine.npz", cwd=tmp_path) as v:
+        info = json.loads(v.get("/api/rig")[1])
+        assert info["vertices"] == 74 and info["bones"] == 2 and info["has_E"]
+        status, body = v.get("/api/save-rig", method="POST")
+        assert status == 200 and json.loads(body)["path"] == str(tmp_path / "out" / "mine.npz")
+        status, body = v.get("/api/save-pose", method="POST", body=b"{}")
+        assert json.loads(body)["path"] == str(tmp_path / "out" / "bar-pose-001.json")
+        code, out, _ = v.stop()
+    assert code == 0 and out == ""
+    saved = load_rig(tmp_path / "out" / "mine.npz")
+    assert saved.W.shape == (74, 2) and np.allclose(np.asarray(saved.W).sum(axis=1), 1)
+
+
+@pytest.mark.parametrize("args, name, b, extras", [
+    ((), "arm", 3, set()),
+    (("--example", "picture"), "picture", 10, {"UV", "texture"}),
+])
+def test_view_examples(tmp_path, args, name, b, extras):
+    with View(*args, cwd=tmp_path) as v:
+        info = json.loads(v.get("/api/rig")[1])
+        assert info["name"] == name and info["bones"] == b and info["has_E"]
+        assert extras <= set(info["arrays"])
+        assert info["save"] == {"rig": False, "pose": False}      # no folder of its own
+        assert v.get("/api/save-pose", method="POST", body=b"{}")[0] == 409
+        if extras:
+            uv = np.frombuffer(v.get("/api/rig/UV.bin")[1], "<f4").reshape(-1, 2)
+            assert len(uv) == info["vertices"] and uv.min() >= 0 and uv.max() <= 1
+        code, out, _ = v.stop()
+    assert code == 0 and out == ""
+    assert list(tmp_path.iterdir()) == []                           # nothing written
+
+
+# ---------------------------------------------------------------- bad inputs
+def run(capsys, *argv):
+    code = main(["view", "--no-browser", *map(str, argv)])
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def one_error(capsys, *argv, words):
+    code, out, err = run(capsys, *argv)
+    assert code == 2 and out == "", (out, err)
+    assert err.count("\n") == 1 and err.startswith("stbs view: error: "), err
+    assert words in err, err
+
+
+def test_bad_inputs_are_one_line_and_exit_2(capsys, rig_file, tmp_path):
+    one_error(capsys, tmp_path / "missing.npz", words="not found")
+    one_error(capsys, tmp_path / "mesh.obj", words="expected a .npz rig, or a MESH")
+    one_error(capsys, tmp_path / "missing.obj", tmp_path / "x.tgf", words="not found")
+    one_error(capsys, rig_file, "--example", "arm", words="not both")
+    one_error(capsys, rig_file, "--bone", "heat", words="--bone applies to MESH SKELETON")
+    one_error(capsys, "--example", "arm", "--tol", "1e-3", words="--tol applies")
+    one_error(capsys, rig_file, "--port", "70000", words="--port")
+    one_error(capsys, rig_file, "--save-as", tmp_path / "x.txt", words="expected a .npz")
+    one_error(capsys, rig_file, "--save-as", tmp_path / "no" / "x.npz", words="does not exist")
+    one_error(capsys, "--example", "nope", words="invalid choice")
+    bad = tmp_path / "bad.npz"
+    bad.write_bytes(b"not a zip")
+    one_error(capsys, bad, words="bad.npz")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["bad.npz", "bar.npz"]
+
+
+def test_a_taken_port_is_one_line(capsys, rig_file):
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        s.listen(1)
+        port = s.getsockname()[1]
+        one_error(capsys, rig_file, "--port", port, words=f"cannot listen on 127.0.0.1:{port}")
+
+
+def test_bad_weights_in_a_rig_are_one_line(capsys, tmp_path):
+    rig = bar_rig()
+    W = np.asarray(rig.W).copy()
+    W[5] = 0
+    save_rig(tmp_path / "zero.npz", rig.replace(W=W))
+    one_error(capsys, tmp_path / "zero.npz", words="row 5 sums to 0")
+
+
+def test_help_and_the_command_list(capsys):
+    code = main(["view", "--help"])
+    out = capsys.readouterr().out
+    assert code == 0 and "examples:" in out and "stbs view arm.npz" in out
+    assert "comes later" in " ".join(out.split())
+    assert main(["--help"]) == 0 and "view" in capsys.readouterr().out
+    assert main([]) == 2 and "view" in capsys.readouterr().err
+
+
+def test_building_the_parser_imports_neither_the_viewer_nor_numba():
+    code = ("import sys; from stbs.cli import build_parser; build_parser(); "
+            "print(sorted(m for m in ('stbs.viewer', 'numba', 'stbs.demo', 'http.server') "
+            "if m in sys.modules))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         timeout=120, check=True).stdout
+    assert out.strip() == "[]"
+
+
+def test_the_url_line_is_what_the_server_says(rig_file):
+    from stbs.viewer import ViewerServer
+
+    with ViewerServer(load_rig(rig_file)) as s:
+        assert URL.match(s.url) and int(URL.match(s.url)[1]) == s.port
+    assert stbs.viewer.HOST == "127.0.0.1"
