@@ -1,5 +1,5 @@
 """The ``stbs`` command line: ``stbs rig``, ``stbs weights``, ``stbs deform``,
-``stbs demo``, ``stbs bench``, ``stbs version``.
+``stbs view``, ``stbs demo``, ``stbs bench``, ``stbs version``.
 
 ``main(argv)`` returns the exit status instead of exiting, so it can be tested in
 process; the console script ``stbs`` is ``sys.exit(main())``.
