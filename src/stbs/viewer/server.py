@@ -285,6 +285,18 @@ class ViewerServer:
             self._pose_obj = self._canonical(pose, obj)
             return dict(self._pose_obj)
 
+    def pose_bones(self) -> dict:
+        """The current pose as its per-bone arrays (DESIGN section 2), for the page's shader.
+
+        ``{"rotations": (b, d, d), "origins": (b, d), "stretch": (b,), "twist": (b, 2)}``
+        as nested lists, twists in radians: the pose ``POST /api/pose`` read with
+        :func:`stbs.io.read_pose`.
+        """
+        with self._lock:
+            pose = self.pose
+        return {"rotations": pose.rotations.tolist(), "origins": pose.origins.tolist(),
+                "stretch": pose.stretch.tolist(), "twist": pose.twist.tolist()}
+
     def _read_pose(self, obj: Any) -> Pose:
         if not isinstance(obj, dict):
             raise _Refused(400, f"pose: expected a JSON object (a pose in either form of "
@@ -562,6 +574,7 @@ class _Handler(BaseHTTPRequestHandler):
         self._check_token(query)
         viewer = self.server.viewer
         routes = {"/api/rig": ("GET",), "/api/pose": ("GET", "POST"),
+                  "/api/pose/bones": ("GET",),
                   "/api/save-pose": ("POST",), "/api/save-rig": ("POST",)}
         m = _ARRAY.match(path)
         allowed = ("GET",) if m else routes.get(path)
@@ -578,6 +591,8 @@ class _Handler(BaseHTTPRequestHandler):
             if method == "GET":
                 return self._json(viewer.get_pose())
             return self._json({"pose": viewer.set_pose(self._json_body())})
+        if path == "/api/pose/bones":
+            return self._json(viewer.pose_bones())
         if path == "/api/save-pose":
             return self._json(viewer.save_pose(self._json_body()))
         return self._json(viewer.save_rig(*self._weights_body()))

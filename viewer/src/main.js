@@ -1,0 +1,332 @@
+// stbs view: the page. Loads the rig from the server's API, skins it in a vertex
+// shader (skin.js: lbs, dqs, stbs-lbs, stbs-dqs), draws it lit with the skeleton
+// over it, and exposes the scripting API window.stbsViewer (DESIGN.md section 7).
+
+import * as THREE from "three";
+import { OrbitControls } from "three/examples/jsm/controls/OrbitControls.js";
+import { SkinFeedback } from "./feedback.js";
+import { packBones, posedSegments, restFrames } from "./pose.js";
+import { MESH_FRAGMENT, MESH_VERTEX, METHODS, TEXELS_PER_BONE } from "./skin.js";
+
+const TOKEN = new URLSearchParams(location.search).get("token") || "";
+const DTYPES = { float32: Float32Array, float64: Float64Array, uint8: Uint8Array,
+                 uint16: Uint16Array, uint32: Uint32Array, int32: Int32Array,
+                 int16: Int16Array, int8: Int8Array };
+
+async function api(path, options = {}) {
+  const headers = Object.assign({ "X-Stbs-Token": TOKEN }, options.headers || {});
+  const r = await fetch(path, Object.assign({}, options, { headers, cache: "no-store" }));
+  if (!r.ok) {
+    let msg = `${r.status}`;
+    try { msg = (await r.json()).error || msg; } catch (_) { /* not JSON */ }
+    const err = new Error(`${path}: ${msg}`);
+    err.status = r.status;
+    throw err;
+  }
+  return r;
+}
+
+async function apiJSON(path, options) {
+  return (await api(path, options)).json();
+}
+
+async function loadArray(desc) {
+  const r = await api(desc.url);
+  const Type = DTYPES[desc.dtype];
+  if (!Type) throw new Error(`${desc.url}: unsupported dtype ${desc.dtype}`);
+  return new Type(await r.arrayBuffer());
+}
+
+function toFloat32(a) {
+  return a instanceof Float32Array ? a : Float32Array.from(a);
+}
+
+function pad3(V, dim) {   // (n, dim) -> (n, 3), z = 0 in 2D
+  if (dim === 3) return toFloat32(V);
+  const n = V.length / dim, out = new Float32Array(3 * n);
+  for (let i = 0; i < n; i++) { out[3 * i] = V[2 * i]; out[3 * i + 1] = V[2 * i + 1]; }
+  return out;
+}
+
+/** Area-weighted vertex normals of the rest surface (2D: +z). */
+function restNormals(P, F, dim) {
+  const n = P.length / 3, N = new Float64Array(3 * n);
+  if (dim === 2 || !F || F.length === 0) {
+    const out = new Float32Array(3 * n);
+    for (let i = 0; i < n; i++) out[3 * i + 2] = 1;
+    return out;
+  }
+  for (let f = 0; f < F.length; f += 3) {
+    const i = F[f], j = F[f + 1], k = F[f + 2];
+    const ux = P[3 * j] - P[3 * i], uy = P[3 * j + 1] - P[3 * i + 1], uz = P[3 * j + 2] - P[3 * i + 2];
+    const vx = P[3 * k] - P[3 * i], vy = P[3 * k + 1] - P[3 * i + 1], vz = P[3 * k + 2] - P[3 * i + 2];
+    const cx = uy * vz - uz * vy, cy = uz * vx - ux * vz, cz = ux * vy - uy * vx;
+    for (const v of [i, j, k]) { N[3 * v] += cx; N[3 * v + 1] += cy; N[3 * v + 2] += cz; }
+  }
+  const out = new Float32Array(3 * n);
+  for (let v = 0; v < n; v++) {
+    const l = Math.hypot(N[3 * v], N[3 * v + 1], N[3 * v + 2]);
+    if (l > 0) for (let c = 0; c < 3; c++) out[3 * v + c] = N[3 * v + c] / l;
+    else out[3 * v + 2] = 1;
+  }
+  return out;
+}
+
+function median(xs) {
+  const s = [...xs].sort((a, b) => a - b), m = s.length >> 1;
+  return s.length % 2 ? s[m] : 0.5 * (s[m - 1] + s[m]);
+}
+
+function status(text, isError = false) {
+  const el = document.getElementById("status");
+  if (el) { el.textContent = text; el.classList.toggle("error", isError); }
+}
+
+class Viewer {
+  async load() {
+    const info = await apiJSON("/api/rig");
+    this.summary = info;
+    this.dim = info.dim;
+    const want = ["V", "F", "C", "BE", "I4", "W4", "E4"];
+    const arrays = {};
+    await Promise.all(want.map(async (k) => {
+      if (info.arrays[k]) arrays[k] = await loadArray(info.arrays[k]);
+    }));
+    this.arrays = arrays;
+    this.n = info.vertices;
+    this.b = info.bones;
+    this.rest = restFrames(arrays.C, arrays.BE, this.dim);
+    this.boneData = new Float32Array(4 * TEXELS_PER_BONE * this.b);
+    this.methodIndex = Math.max(0, METHODS.indexOf(info.method));
+    this.buildScene();
+    await this.fetchPose();
+    this.compile();
+    this.buildUI();
+    this.render();
+  }
+
+  buildScene() {
+    const { arrays, dim } = this;
+    const canvas = document.getElementById("view");
+    const renderer = new THREE.WebGLRenderer({ canvas, antialias: true, preserveDrawingBuffer: true });
+    renderer.setPixelRatio(window.devicePixelRatio || 1);
+    renderer.setSize(window.innerWidth, window.innerHeight, false);
+    renderer.setClearColor(0x20232a, 1);
+    this.renderer = renderer;
+    this.gl = renderer.getContext();
+    if (!(this.gl instanceof WebGL2RenderingContext)) throw new Error("WebGL2 is required");
+
+    const position = pad3(arrays.V, dim);
+    const normal = restNormals(position, arrays.F, dim);
+    const index = toFloat32(arrays.I4), weight = toFloat32(arrays.W4), end = toFloat32(arrays.E4);
+    this.restNormals = normal;
+    const geom = new THREE.BufferGeometry();
+    geom.setAttribute("position", new THREE.BufferAttribute(position, 3));
+    geom.setAttribute("normal", new THREE.BufferAttribute(normal, 3));
+    geom.setAttribute("stbsIndex", new THREE.BufferAttribute(index, 4));
+    geom.setAttribute("stbsWeight", new THREE.BufferAttribute(weight, 4));
+    geom.setAttribute("stbsEnd", new THREE.BufferAttribute(end, 4));
+    if (arrays.F) geom.setIndex(new THREE.BufferAttribute(new Uint32Array(arrays.F), 1));
+    geom.computeBoundingBox();
+    this.bbox = geom.boundingBox.clone();
+    for (let j = 0; j < arrays.C.length / dim; j++) {
+      this.bbox.expandByPoint(new THREE.Vector3(arrays.C[dim * j], arrays.C[dim * j + 1],
+                                                dim === 3 ? arrays.C[dim * j + 2] : 0));
+    }
+
+    this.boneTexture = new THREE.DataTexture(this.boneData, TEXELS_PER_BONE, this.b,
+                                             THREE.RGBAFormat, THREE.FloatType);
+    this.boneTexture.minFilter = this.boneTexture.magFilter = THREE.NearestFilter;
+    this.boneTexture.generateMipmaps = false;
+    this.boneTexture.flipY = false;
+    this.boneTexture.needsUpdate = true;
+    this.material = new THREE.ShaderMaterial({
+      glslVersion: THREE.GLSL3,
+      vertexShader: MESH_VERTEX,
+      fragmentShader: MESH_FRAGMENT,
+      side: THREE.DoubleSide,
+      uniforms: {
+        uBones: { value: this.boneTexture },
+        uMethod: { value: this.methodIndex },
+        uColor: { value: new THREE.Color(0.85, 0.66, 0.52) },
+        uBoneTint: { value: dim === 2 ? 0.45 : 0.2 },
+        uFlat: { value: dim === 2 ? 1 : 0 },
+      },
+    });
+    this.mesh = new THREE.Mesh(geom, this.material);
+    this.mesh.frustumCulled = false;     // skinned on the GPU: the rest bounds do not hold
+
+    const scene = new THREE.Scene();
+    scene.add(this.mesh);
+    const segs = new Float32Array(6 * this.b);
+    const lineGeom = new THREE.BufferGeometry();
+    lineGeom.setAttribute("position", new THREE.BufferAttribute(segs, 3));
+    this.skeletonLines = new THREE.LineSegments(lineGeom, new THREE.LineBasicMaterial(
+      { color: 0x7fd4ff, depthTest: false, transparent: true }));
+    this.skeletonLines.renderOrder = 1;
+    this.skeletonLines.frustumCulled = false;
+    this.joints = new THREE.Points(lineGeom, new THREE.PointsMaterial(
+      { color: 0xffffff, size: 6, sizeAttenuation: false, depthTest: false, transparent: true }));
+    this.joints.renderOrder = 2;
+    this.joints.frustumCulled = false;
+    scene.add(this.skeletonLines, this.joints);
+    this.scene = scene;
+
+    const center = this.bbox.getCenter(new THREE.Vector3());
+    const size = this.bbox.getSize(new THREE.Vector3());
+    const diag = Math.max(size.length(), 1e-6);
+    this.diag = diag;
+    const aspect = window.innerWidth / Math.max(window.innerHeight, 1);
+    if (dim === 2) {
+      const h = 0.75 * diag;
+      this.camera = new THREE.OrthographicCamera(-h * aspect, h * aspect, h, -h, -10 * diag, 10 * diag);
+      this.camera.position.set(center.x, center.y, diag);
+    } else {
+      this.camera = new THREE.PerspectiveCamera(40, aspect, diag * 1e-3, diag * 100);
+      this.camera.position.copy(center).add(new THREE.Vector3(0.35, 0.25, 1).normalize()
+                                            .multiplyScalar(1.6 * diag));
+    }
+    this.camera.lookAt(center);
+    const controls = new OrbitControls(this.camera, canvas);
+    controls.target.copy(center);
+    if (dim === 2) { controls.enableRotate = false; controls.screenSpacePanning = true; }
+    controls.update();
+    controls.addEventListener("change", () => this.render());
+    this.controls = controls;
+    window.addEventListener("resize", () => this.resize());
+
+    this.feedback = new SkinFeedback(this.gl, { position, normal, index, weight, end }, this.b);
+    renderer.resetState();
+  }
+
+  resize() {
+    const w = window.innerWidth, h = Math.max(window.innerHeight, 1), aspect = w / h;
+    this.renderer.setSize(w, h, false);
+    if (this.camera.isOrthographicCamera) {
+      const half = 0.5 * (this.camera.top - this.camera.bottom);
+      this.camera.left = -half * aspect; this.camera.right = half * aspect;
+    } else {
+      this.camera.aspect = aspect;
+    }
+    this.camera.updateProjectionMatrix();
+    this.render();
+  }
+
+  /** Check that three's program for the mesh compiled and linked; throw if not. */
+  compile() {
+    this.renderer.compile(this.scene, this.camera);
+    this.render();
+    const props = this.renderer.properties.get(this.material);
+    const program = props.currentProgram;
+    const gl = this.gl;
+    const ok = !!program && !program.diagnostics &&
+               gl.getProgramParameter(program.program, gl.LINK_STATUS);
+    this.shaders = { mesh: !!ok, feedback: !!this.feedback.linked };
+    if (!ok) {
+      const d = program && program.diagnostics;
+      throw new Error(`the skinning shader did not compile: ${d ? (d.vertexShader.log ||
+        d.fragmentShader.log || d.programLog) : "no program"}`);
+    }
+  }
+
+  async fetchPose() {
+    this.poseArrays = await apiJSON("/api/pose/bones");
+    packBones(this.rest, this.poseArrays, this.dim, this.boneData);
+    this.boneTexture.needsUpdate = true;
+    const segs = this.skeletonLines.geometry.attributes.position;
+    posedSegments(this.rest, this.poseArrays, this.dim, segs.array);
+    segs.needsUpdate = true;
+  }
+
+  render() {
+    this.renderer.render(this.scene, this.camera);
+  }
+
+  buildUI() {
+    const sel = document.getElementById("method");
+    if (!sel) return;
+    for (const m of METHODS) {
+      const o = document.createElement("option");
+      o.value = o.textContent = m;
+      sel.appendChild(o);
+    }
+    sel.value = METHODS[this.methodIndex];
+    sel.addEventListener("change", () => this.setMethod(sel.value));
+    const s = this.summary;
+    status(`${s.name}: ${s.vertices} vertices, ${s.bones} bones, ${s.dim}D`);
+  }
+
+  info() {
+    return { vertices: this.n, bones: this.b, dim: this.dim, methods: METHODS.slice(),
+             method: METHODS[this.methodIndex], names: this.summary.names,
+             shaders: Object.assign({}, this.shaders) };
+  }
+
+  setMethod(name) {
+    const i = METHODS.indexOf(name);
+    if (i < 0) throw new Error(`method must be one of ${METHODS.join(", ")}, got ${JSON.stringify(name)}`);
+    this.methodIndex = i;
+    this.material.uniforms.uMethod.value = i;
+    const sel = document.getElementById("method");
+    if (sel) sel.value = name;
+    this.render();
+    return METHODS[i];
+  }
+
+  async setPose(pose) {
+    const reply = await apiJSON("/api/pose", {
+      method: "POST", headers: { "Content-Type": "application/json" }, body: JSON.stringify(pose) });
+    await this.fetchPose();
+    this.render();
+    return reply.pose;
+  }
+
+  async getPose() {
+    return apiJSON("/api/pose");
+  }
+
+  skinned() {
+    const out = this.feedback.run(this.boneData, this.methodIndex);
+    this.renderer.resetState();
+    return out;
+  }
+
+  timeFrames(count = 60) {
+    count = Math.max(1, Math.floor(count));
+    const gl = this.gl, pixel = new Uint8Array(4), times = [];
+    for (let k = 0; k < count; k++) {
+      const t0 = performance.now();
+      packBones(this.rest, this.poseArrays, this.dim, this.boneData);
+      this.boneTexture.needsUpdate = true;
+      this.render();
+      gl.readPixels(0, 0, 1, 1, gl.RGBA, gl.UNSIGNED_BYTE, pixel);   // waits for the GPU
+      times.push(performance.now() - t0);
+    }
+    return median(times);
+  }
+}
+
+document.getElementById("fallback")?.remove();
+const viewer = new Viewer();
+const ready = viewer.load().then(() => {
+  document.body.dataset.ready = "true";
+  return viewer.info();
+}, (err) => {
+  status(`stbs view: ${err.message}`, true);
+  console.error(`stbs view: ${err.message}`);
+  throw err;
+});
+
+const whenReady = (f) => (...args) => ready.then(() => f(...args));
+
+window.stbsViewer = Object.freeze({
+  ready,
+  info: () => viewer.info(),
+  setMethod: whenReady((name) => viewer.setMethod(name)),
+  setPose: whenReady((pose) => viewer.setPose(pose)),
+  getPose: whenReady(() => viewer.getPose()),
+  skinnedPositions: whenReady(() => viewer.skinned()[0]),
+  skinnedNormals: whenReady(() => viewer.skinned()[1]),
+  restNormals: whenReady(() => viewer.restNormals.slice()),
+  timeFrames: whenReady((count) => viewer.timeFrames(count)),
+});

@@ -1,0 +1,121 @@
+// Per-bone pose data for the shader (skin.js): rest frames, pose arrays, the
+// bone texture's rows, and the posed skeleton for drawing.
+
+import { TEXELS_PER_BONE } from "./skin.js";
+
+/** Rest frames of the bones, in 3D (2D rigs get z = 0), float64. */
+export function restFrames(C, BE, dim) {
+  const b = BE.length / 2;
+  const a = new Float64Array(3 * b), bb = new Float64Array(3 * b);
+  const u = new Float64Array(3 * b), len = new Float64Array(b);
+  for (let i = 0; i < b; i++) {
+    const s = BE[2 * i], t = BE[2 * i + 1];
+    let l2 = 0;
+    for (let c = 0; c < 3; c++) {
+      const x = c < dim ? C[dim * s + c] : 0, y = c < dim ? C[dim * t + c] : 0;
+      a[3 * i + c] = x; bb[3 * i + c] = y;
+      l2 += (y - x) * (y - x);
+    }
+    const l = Math.sqrt(l2);
+    len[i] = l;
+    for (let c = 0; c < 3; c++) u[3 * i + c] = l > 0 ? (bb[3 * i + c] - a[3 * i + c]) / l : 0;
+  }
+  return { count: b, a, b: bb, u, len };
+}
+
+/** The rest pose's arrays: R = I, a' = a, sigma = 1, theta = 0 (d = dim). */
+export function restPose(rest, dim) {
+  const n = rest.count;
+  const rotations = [], origins = [], stretch = [], twist = [];
+  for (let i = 0; i < n; i++) {
+    const R = [];
+    for (let r = 0; r < dim; r++) {
+      const row = [];
+      for (let c = 0; c < dim; c++) row.push(r === c ? 1 : 0);
+      R.push(row);
+    }
+    rotations.push(R);
+    origins.push(Array.from(rest.a.subarray(3 * i, 3 * i + dim)));
+    stretch.push(1);
+    twist.push([0, 0]);
+  }
+  return { rotations, origins, stretch, twist };
+}
+
+/** (w, x, y, z) of a 3x3 rotation given row-major as m[r][c] (Shepperd's method). */
+function matToQuat(m) {
+  const tr = m[0][0] + m[1][1] + m[2][2];
+  let w, x, y, z;
+  if (tr > 0) {
+    const s = 2 * Math.sqrt(tr + 1);
+    w = 0.25 * s; x = (m[2][1] - m[1][2]) / s; y = (m[0][2] - m[2][0]) / s; z = (m[1][0] - m[0][1]) / s;
+  } else if (m[0][0] > m[1][1] && m[0][0] > m[2][2]) {
+    const s = 2 * Math.sqrt(1 + m[0][0] - m[1][1] - m[2][2]);
+    w = (m[2][1] - m[1][2]) / s; x = 0.25 * s; y = (m[0][1] + m[1][0]) / s; z = (m[0][2] + m[2][0]) / s;
+  } else if (m[1][1] > m[2][2]) {
+    const s = 2 * Math.sqrt(1 + m[1][1] - m[0][0] - m[2][2]);
+    w = (m[0][2] - m[2][0]) / s; x = (m[0][1] + m[1][0]) / s; y = 0.25 * s; z = (m[1][2] + m[2][1]) / s;
+  } else {
+    const s = 2 * Math.sqrt(1 + m[2][2] - m[0][0] - m[1][1]);
+    w = (m[1][0] - m[0][1]) / s; x = (m[0][2] + m[2][0]) / s; y = (m[1][2] + m[2][1]) / s; z = 0.25 * s;
+  }
+  const l = Math.hypot(w, x, y, z);
+  return [w / l, x / l, y / l, z / l];
+}
+
+function embed(R, dim) {   // a d x d rotation as 3x3 rows
+  if (dim === 3) return R;
+  return [[R[0][0], R[0][1], 0], [R[1][0], R[1][1], 0], [0, 0, 1]];
+}
+
+/**
+ * Fill the bone texture's data (b rows x TEXELS_PER_BONE RGBA texels) from pose
+ * arrays {rotations (b,d,d), origins (b,d), stretch (b), twist (b,2) radians}.
+ */
+export function packBones(rest, pose, dim, out) {
+  const b = rest.count, T = 4 * TEXELS_PER_BONE;
+  for (let i = 0; i < b; i++) {
+    const R = embed(pose.rotations[i], dim);
+    const o = pose.origins[i];
+    const ap = [o[0], o[1], dim === 3 ? o[2] : 0];
+    const a = [rest.a[3 * i], rest.a[3 * i + 1], rest.a[3 * i + 2]];
+    const row = i * T;
+    for (let c = 0; c < 3; c++) {          // columns of R
+      out[row + 4 * c] = R[0][c];
+      out[row + 4 * c + 1] = R[1][c];
+      out[row + 4 * c + 2] = R[2][c];
+    }
+    out[row + 3] = pose.stretch[i];
+    out[row + 7] = dim === 3 ? pose.twist[i][0] : 0;
+    out[row + 11] = dim === 3 ? pose.twist[i][1] : 0;
+    out.set([ap[0], ap[1], ap[2], rest.len[i]], row + 12);
+    out.set([a[0], a[1], a[2], 0], row + 16);
+    out.set([rest.u[3 * i], rest.u[3 * i + 1], rest.u[3 * i + 2], 0], row + 20);
+    const [w, x, y, z] = matToQuat(R);
+    out.set([x, y, z, w], row + 24);
+    // dual part of x -> a' + R (x - a): t = a' - R a, qd = (t, 0) q / 2
+    const t = [0, 1, 2].map((r) => ap[r] - (R[r][0] * a[0] + R[r][1] * a[1] + R[r][2] * a[2]));
+    const dx = 0.5 * (w * t[0] + t[1] * z - t[2] * y);
+    const dy = 0.5 * (w * t[1] + t[2] * x - t[0] * z);
+    const dz = 0.5 * (w * t[2] + t[0] * y - t[1] * x);
+    const dw = -0.5 * (t[0] * x + t[1] * y + t[2] * z);
+    out.set([dx, dy, dz, dw], row + 28);
+  }
+  return out;
+}
+
+/** Posed joints of each bone: a'_i and b'_i = a'_i + sigma_i R_i (b_i - a_i), in 3D. */
+export function posedSegments(rest, pose, dim, out) {
+  for (let i = 0; i < rest.count; i++) {
+    const R = embed(pose.rotations[i], dim);
+    const o = pose.origins[i];
+    const ap = [o[0], o[1], dim === 3 ? o[2] : 0];
+    const s = pose.stretch[i] * rest.len[i];
+    const u = [rest.u[3 * i], rest.u[3 * i + 1], rest.u[3 * i + 2]];
+    for (let c = 0; c < 3; c++) {
+      out[6 * i + c] = ap[c];
+      out[6 * i + 3 + c] = ap[c] + s * (R[c][0] * u[0] + R[c][1] * u[1] + R[c][2] * u[2]);
+    }
+  }
+  return out;
+}
