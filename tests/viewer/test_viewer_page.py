@@ -151,9 +151,9 @@ def browser():
 class Page:
     """The viewer page for one rig, served by a ViewerServer in a thread."""
 
-    def __init__(self, browser, rig):
+    def __init__(self, browser, rig, extras=None):
         self.rig = rig
-        self.srv = ViewerServer(rig).start()
+        self.srv = ViewerServer(rig, extras=extras).start()
         self.errors = []
         self.page = browser.new_page(viewport={"width": 640, "height": 480})
         self.page.on("console", lambda m: m.type == "error" and self.errors.append(m.text))
@@ -276,6 +276,42 @@ def test_switching_methods_changes_the_picture(tube, plate, tmp_path):
         assert len(np.unique(img.reshape(-1, 3), axis=0)) > (200 if name == "tube" else 20)
     print("screenshots in", tmp_path)
     assert tube.errors == [] and plate.errors == []
+
+
+def test_degrees_false_and_names_give_the_same_pose(tube):
+    deg = {"rotate": {"b3": {"axis": [0, 1, 0], "angle": 90}}, "twist": {"b3": [0, 720]}}
+    rad = {"rotate": {"3": {"axis": [0, 1, 0], "angle": np.pi / 2}},
+           "twist": {"3": [0, 4 * np.pi]}, "degrees": False}
+    tube.js("o => stbsViewer.setPose(o)", deg)
+    U = tube.positions()
+    tube.js("o => stbsViewer.setPose(o)", rad)
+    assert np.abs(tube.positions() - U).max() < 1e-6
+    assert tube.errors == []
+
+
+def test_a_2d_picture_is_drawn_with_its_texture(browser, tmp_path):
+    from PIL import Image
+
+    rig = plate_rig()
+    V = np.asarray(rig.V)
+    UV = ((V - V.min(0)) / np.ptp(V, axis=0)).astype(np.float32)
+    tex = np.zeros((64, 64, 4), dtype=np.uint8)
+    tex[..., 3] = 255
+    tex[:32, :, 0] = 255        # top half red (row 0 at the top)
+    tex[32:, :, 2] = 255        # bottom half blue
+    p = Page(browser, rig, extras={"UV": UV, "texture": tex})
+    try:
+        path = tmp_path / "picture.png"
+        p.page.screenshot(path=str(path))
+        img = np.asarray(Image.open(path).convert("RGB"), dtype=np.int16)
+        red = (img[..., 0] > 200) & (img[..., 1] < 60) & (img[..., 2] < 60)
+        blue = (img[..., 2] > 200) & (img[..., 0] < 60) & (img[..., 1] < 60)
+        assert red.sum() > 5000 and blue.sum() > 5000
+        rows = np.nonzero(red.any(axis=1))[0], np.nonzero(blue.any(axis=1))[0]
+        assert rows[0].mean() < rows[1].mean()      # red above blue: the picture upright
+        assert p.errors == []
+    finally:
+        p.close()
 
 
 def test_time_frames_and_a_bad_pose(tube):

@@ -88,6 +88,7 @@ class Viewer {
     this.summary = info;
     this.dim = info.dim;
     const want = ["V", "F", "C", "BE", "I4", "W4", "E4"];
+    if (info.dim === 2 && info.arrays.UV && info.arrays.texture) want.push("UV", "texture");
     const arrays = {};
     await Promise.all(want.map(async (k) => {
       if (info.arrays[k]) arrays[k] = await loadArray(info.arrays[k]);
@@ -151,8 +152,16 @@ class Viewer {
         uColor: { value: new THREE.Color(0.85, 0.66, 0.52) },
         uBoneTint: { value: dim === 2 ? 0.45 : 0.2 },
         uFlat: { value: dim === 2 ? 1 : 0 },
+        uTextured: { value: 0 },
+        uPicture: { value: null },
       },
     });
+    const picture = this.pictureTexture();
+    if (picture) {
+      geom.setAttribute("uv", new THREE.BufferAttribute(toFloat32(arrays.UV), 2));
+      this.material.uniforms.uPicture.value = picture;
+      this.material.uniforms.uTextured.value = 1;
+    }
     this.mesh = new THREE.Mesh(geom, this.material);
     this.mesh.frustumCulled = false;     // skinned on the GPU: the rest bounds do not hold
 
@@ -197,6 +206,21 @@ class Viewer {
 
     this.feedback = new SkinFeedback(this.gl, { position, normal, index, weight, end }, this.b);
     renderer.resetState();
+  }
+
+  /** The 2D picture's texture (arrays UV and texture, row 0 at the top), or null. */
+  pictureTexture() {
+    const { UV, texture } = this.arrays;
+    const shape = this.summary.arrays.texture && this.summary.arrays.texture.shape;
+    if (!UV || !texture || !shape || shape.length !== 3 || shape[2] !== 4) return null;
+    const [h, w] = shape, flipped = new Uint8Array(texture.length), row = 4 * w;
+    for (let y = 0; y < h; y++) flipped.set(texture.subarray(y * row, (y + 1) * row), (h - 1 - y) * row);
+    const tex = new THREE.DataTexture(flipped, w, h, THREE.RGBAFormat, THREE.UnsignedByteType);
+    tex.minFilter = THREE.LinearFilter;
+    tex.magFilter = THREE.LinearFilter;
+    tex.generateMipmaps = false;
+    tex.needsUpdate = true;
+    return tex;
   }
 
   resize() {

@@ -160,6 +160,7 @@ in vec4 stbsEnd;
 out vec3 vNormal;
 out vec3 vView;
 out vec3 vTint;
+out vec2 vUv;
 vec3 boneHue(float i) {
   return 0.5 + 0.5 * cos(6.28318 * (fract(i * 0.618034) + vec3(0.0, 0.33, 0.67)));
 }
@@ -168,6 +169,7 @@ void main() {
   stbsSkin(position, normal, stbsIndex, stbsWeight, stbsEnd, P, N);
   vTint = vec3(0.0);
   for (int k = 0; k < 4; k++) vTint += stbsWeight[k] * boneHue(stbsIndex[k]);
+  vUv = uv;
   vec4 mv = modelViewMatrix * vec4(P, 1.0);
   vView = -mv.xyz;
   vNormal = normalMatrix * N;
@@ -180,12 +182,21 @@ export const MESH_FRAGMENT = /* glsl */ `
 uniform vec3 uColor;
 uniform float uBoneTint;
 uniform float uFlat;
+uniform float uTextured;
+uniform sampler2D uPicture;
 in vec3 vNormal;
 in vec3 vView;
 in vec3 vTint;
+in vec2 vUv;
 out highp vec4 fragColor;
 void main() {
   vec3 base = mix(uColor, vTint, uBoneTint);
+  if (uTextured > 0.5) {      // a 2D picture (stbs view --example picture): its own colours
+    vec4 t = texture(uPicture, vUv);
+    if (t.a < 0.5) discard;
+    fragColor = vec4(t.rgb, 1.0);
+    return;
+  }
   if (uFlat > 0.5) { fragColor = vec4(base, 1.0); return; }
   vec3 n = normalize(vNormal);
   if (!gl_FrontFacing) n = -n;
