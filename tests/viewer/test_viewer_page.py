@@ -27,7 +27,9 @@ sync_api = pytest.importorskip("playwright.sync_api", reason="playwright is not 
                                "(pip install playwright; the test extra has it)")
 
 CHROMIUM = os.environ.get("STBS_CHROMIUM", "/usr/bin/chromium")
-ARGS = ["--use-angle=swiftshader", "--enable-unsafe-swiftshader", "--headless=new"]
+ARGS = ["--use-angle=swiftshader", "--enable-unsafe-swiftshader", "--headless=new",
+        "--disable-dev-shm-usage"]
+READY_S = 60        # the page must be ready within this (it takes about 1 s here)
 METHODS = ("lbs", "dqs", "stbs-lbs", "stbs-dqs")
 POS_TOL = 1e-4      # of the bounding-box diagonal
 NORMAL_TOL = 1e-3
@@ -159,7 +161,10 @@ class Page:
         self.page.on("console", lambda m: m.type == "error" and self.errors.append(m.text))
         self.page.on("pageerror", lambda e: self.errors.append(str(e)))
         self.page.goto(self.srv.url)
-        self.info = self.page.evaluate("stbsViewer.ready")
+        self.page.wait_for_function("window.stbsViewer !== undefined", timeout=READY_S * 1000)
+        self.info = self.page.evaluate(
+            """s => Promise.race([stbsViewer.ready, new Promise((_, no) => setTimeout(
+                   () => no(new Error(`not ready after ${s} s`)), s * 1000))])""", READY_S)
 
     def js(self, expr, arg=None):
         return self.page.evaluate(expr, arg)
