@@ -1,6 +1,7 @@
 # The one way to run things (STYLE habit 10): developers, CI and users run these targets.
-# Needs only Python 3.11, git and make (Debian bookworm); the rest is installed here:
-# the Python packages into .venv, the system libraries with apt-get when missing.
+# Needs only Python 3.11, git, make and Node (Debian bookworm); the rest is installed
+# here: the Python packages into .venv, the viewer's npm packages into viewer/, and the
+# system libraries and Chromium with apt-get when missing.
 PY ?= python3
 VENV := .venv
 BIN := $(VENV)/bin
@@ -8,19 +9,39 @@ PIP := $(BIN)/python -m pip --disable-pip-version-check -q
 DEMO_OUT ?= demo-out
 # wheel-check's folder, made afresh on each run: dist/ (sdist and wheel), venv/, build.log
 WHEEL_CHECK := build/wheel-check
+# The viewer page's bundle (three.js and viewer/src, by esbuild): built, never committed.
+VIEWER_JS := src/stbs/viewer/static/viewer.js
 
 .PHONY: demo test pytest wheel-check lint bench bench-igl bench-bbw install install-test clean
 
 $(BIN)/python:
 	$(PY) -m venv $(VENV)
 
-# Stamps re-run the install when pyproject.toml changes.
-$(VENV)/.stamp-install: pyproject.toml | $(BIN)/python
+# Stamps re-run the install when pyproject.toml changes. The viewer's bundle is built
+# first, so that the editable install and the wheel ship it.
+$(VENV)/.stamp-install: pyproject.toml | $(BIN)/python $(VIEWER_JS)
 	$(PIP) install -e ".[demo,weights,triangle]"
 	@touch $@
 
-$(VENV)/.stamp-test: pyproject.toml | $(BIN)/python
+$(VENV)/.stamp-test: pyproject.toml | $(BIN)/python $(VIEWER_JS)
 	$(PIP) install -e ".[test,bench,embree,triangle,tetgen,weights,demo]"
+	@touch $@
+
+# npm packages from the committed lock file (viewer/package-lock.json), then the bundle.
+viewer/node_modules/.package-lock.json: viewer/package.json viewer/package-lock.json
+	npm ci --prefix viewer --no-audit --no-fund
+	@touch $@
+
+$(VIEWER_JS): viewer/node_modules/.package-lock.json $(wildcard viewer/src/*.js)
+	viewer/node_modules/.bin/esbuild viewer/src/main.js --bundle --format=esm \
+	  --target=es2020 --minify --log-level=warning --outfile=$@
+
+# Chromium for the viewer's browser tests (Playwright drives it; it never downloads a
+# browser of its own), from apt when missing.
+$(VENV)/.stamp-chromium: | $(BIN)/python
+	@test -x /usr/bin/chromium || { command -v apt-get >/dev/null && apt-get update -qq && \
+	  apt-get install -y -qq chromium; } || \
+	  echo "note: no /usr/bin/chromium; the viewer's browser tests will fail"
 	@touch $@
 
 # The system CHOLMOD (with OpenBLAS under it): the fastest sparse Cholesky, called
@@ -41,8 +62,8 @@ $(VENV)/.stamp-cxx: | $(BIN)/python
 	  echo "note: no g++ or Eigen headers; the igl-dqs peer will be skipped"
 	@touch $@
 
-install: $(VENV)/.stamp-install $(VENV)/.stamp-syslibs
-install-test: $(VENV)/.stamp-test $(VENV)/.stamp-syslibs
+install: $(VENV)/.stamp-install $(VENV)/.stamp-syslibs $(VIEWER_JS)
+install-test: $(VENV)/.stamp-test $(VENV)/.stamp-syslibs $(VENV)/.stamp-chromium $(VIEWER_JS)
 
 demo: install
 	$(BIN)/stbs demo --out $(DEMO_OUT)
@@ -99,5 +120,6 @@ bench-bbw: install-test
 	$(BIN)/python benchmarks/bbw_vs_igl.py
 
 clean:
-	rm -rf $(VENV) build dist src/*.egg-info $(DEMO_OUT) .pytest_cache .ruff_cache
+	rm -rf $(VENV) build dist src/*.egg-info $(DEMO_OUT) .pytest_cache .ruff_cache \
+	  viewer/node_modules $(VIEWER_JS)
 	find . -name __pycache__ -type d -prune -exec rm -rf {} +

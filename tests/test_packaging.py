@@ -39,6 +39,7 @@ INSTALLS_ON_BOOKWORM = {
     "pytest": "7",
     "ruff": "0.13",          # 0.12 and older report UP038 on this code base
     "build": "1",
+    "playwright": "1.65",    # with Debian's chromium (apt), never a downloaded browser
 }
 # Known not to install there; the reason is the failure message.
 NOT_ON_BOOKWORM = {
