@@ -83,8 +83,9 @@ pytest: install-test
 
 # Build the sdist and, from it, the wheel (python -m build: a clean, isolated build,
 # so a file the sdist or the wheel lacks shows up here), install the wheel into a
-# fresh virtual environment without extras and run the command from a folder
-# outside the source tree, then again with the demo extra.
+# fresh virtual environment without extras, check that it holds every file git has
+# under src/stbs and the viewer's bundle, and run the command from a folder outside
+# the source tree, then again with the demo extra.
 wheel-check: install-test
 	rm -rf $(WHEEL_CHECK)
 	mkdir -p $(WHEEL_CHECK)
@@ -99,6 +100,11 @@ wheel-check: install-test
 	  $$pip "$$whl" > pip.log 2>&1 || { cat pip.log; exit 1; }; \
 	  "$$venv/bin/python" -c "import stbs, sys; p = stbs.__file__; \
 	    sys.exit(0 if p.startswith('$$venv') else 'stbs imported from ' + p)"; \
+	  site=$$("$$venv/bin/python" -c "import os, stbs; print(os.path.dirname(os.path.dirname(stbs.__file__)))"); \
+	  { git -C $(CURDIR)/src ls-files stbs; echo $(patsubst src/%,%,$(VIEWER_JS)); } | sort -u > want.txt; \
+	  (cd "$$site" && find stbs -type f ! -path '*/__pycache__/*' | sort) > got.txt; \
+	  comm -23 want.txt got.txt > lacking.txt; \
+	  test ! -s lacking.txt || { echo "the wheel lacks:"; cat lacking.txt; exit 1; }; \
 	  "$$venv/bin/stbs" --help > /dev/null; \
 	  test "$$("$$venv/bin/stbs" --version)" = "stbs $$ver" || \
 	    { echo "stbs --version is not stbs $$ver"; exit 1; }; \
@@ -106,7 +112,7 @@ wheel-check: install-test
 	  $$pip "$$whl[demo]" > pip.log 2>&1 || { cat pip.log; exit 1; }; \
 	  "$$venv/bin/stbs" demo --quick --out demo > demo.txt 2>&1 || { cat demo.txt; exit 1; }; \
 	  test -s demo/index.html; \
-	  echo "wheel-check: stbs --help, --version, bench --sizes 10k --no-peers, demo --quick: ok"
+	  echo "wheel-check: every file of src/stbs, stbs --help, --version, bench --sizes 10k --no-peers, demo --quick: ok"
 
 bench: install-test
 	$(BIN)/stbs bench
