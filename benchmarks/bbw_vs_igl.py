@@ -1,8 +1,8 @@
 """Bounded biharmonic weights against libigl's ``igl.bbw``: ``stbs bench --weights`` plus
 the peer, on the same meshes and the *same* boundary conditions.
 
-Each solve case of :mod:`stbs.bench.weights` is timed for us (``BBWSolver(V, E)`` +
-``.solve(b, bc)``, as there) and then given to ``igl.bbw(V, E, b, bc)`` with libigl's
+Each solve case of :mod:`stbs.bench.weights` is timed for us (``BBWSolver(V, Ele)`` +
+``.solve(b, bc)``, as there) and then given to ``igl.bbw(V, Ele, b, bc)`` with libigl's
 default parameters (it builds its L, M, Q inside its own call too), only up to
 ``--igl-max-vertices`` vertices, since it takes minutes on large meshes. Both results
 are checked against the KKT conditions of the same QP and against each other
@@ -55,7 +55,7 @@ import sys, time
 import numpy as np
 import igl
 z = np.load(sys.argv[1])
-args = [np.ascontiguousarray(z[k]) for k in ("V", "E", "b", "bc")]
+args = [np.ascontiguousarray(z[k]) for k in ("V", "Ele", "b", "bc")]
 t = time.perf_counter()
 W = igl.bbw(*args)
 t = time.perf_counter() - t
@@ -74,12 +74,12 @@ def igl_available() -> tuple[bool, str]:
     return True, ""
 
 
-def igl_bbw(V, E, b, bc, *, timeout: float | None = None) -> tuple[np.ndarray | None, float]:
-    """Run ``igl.bbw(V, E, b, bc)`` (default parameters) and time it.
+def igl_bbw(V, Ele, b, bc, *, timeout: float | None = None) -> tuple[np.ndarray | None, float]:
+    """Run ``igl.bbw(V, Ele, b, bc)`` (default parameters) and time it.
 
     Parameters
     ----------
-    V : (n, d) float, E : (f, 3) or (t, 4) int, b : (k,) int, bc : (k, m) float
+    V : (n, d) float, Ele : (f, 3) or (t, 4) int, b : (k,) int, bc : (k, m) float
     timeout : float, optional
         Seconds. When given, igl runs in a child Python process (a C++ call cannot be
         interrupted in-process), which is killed after ``timeout`` seconds; the time
@@ -92,18 +92,18 @@ def igl_bbw(V, E, b, bc, *, timeout: float | None = None) -> tuple[np.ndarray | 
         Wall time of ``igl.bbw`` (``timeout`` when it was reached).
     """
     V = np.ascontiguousarray(V, dtype=np.float64)
-    E = np.ascontiguousarray(E, dtype=np.int64)
+    Ele = np.ascontiguousarray(Ele, dtype=np.int64)
     b = np.ascontiguousarray(b, dtype=np.int64)
     bc = np.ascontiguousarray(bc, dtype=np.float64)
     if timeout is None:
         import igl
 
         t = time.perf_counter()
-        W = igl.bbw(V, E, b, bc)
+        W = igl.bbw(V, Ele, b, bc)
         return np.asarray(W), time.perf_counter() - t
     with tempfile.TemporaryDirectory(prefix="stbs-igl-bbw-") as d:
         src, dst = Path(d) / "in.npz", Path(d) / "out.npz"
-        np.savez(src, V=V, E=E, b=b, bc=bc)
+        np.savez(src, V=V, Ele=Ele, b=b, bc=bc)
         try:
             subprocess.run([sys.executable, "-c", _CHILD, str(src), str(dst)], check=True,
                            capture_output=True, text=True, timeout=timeout, cwd=d)
@@ -125,7 +125,7 @@ def warm_up_igl() -> None:
         return
     P = bw.make_problem("2d-small")
     b, bc = bw.boundary(P)
-    igl_bbw(P.V, P.E, b, bc)
+    igl_bbw(P.V, P.Ele, b, bc)
     _IGL_WARM.append(True)
 
 
@@ -160,7 +160,7 @@ def compare_case(P: bw.Problem, *, functions: int = 3, backend: str = "auto",
     for r in range(int(repeat)):
         log(f"{P.name}: igl.bbw, run {r + 1}/{repeat}"
             + (f" (time limit {igl_timeout:g} s)" if igl_timeout else ""))
-        Wr, dt = igl_bbw(P.V, P.E, b, bc, timeout=igl_timeout)
+        Wr, dt = igl_bbw(P.V, P.Ele, b, bc, timeout=igl_timeout)
         if Wr is None:
             row["igl_status"] = f"timed out (> {igl_timeout:g} s)"
             return row
@@ -168,7 +168,7 @@ def compare_case(P: bw.Problem, *, functions: int = 3, backend: str = "auto",
             best, Wi = dt, Wr
     row.update(igl_status="ok", igl_s=best, speedup=best / row["stbs_s"],
                max_abs_dW=float(np.abs(W - Wi).max()),
-               kkt_igl=bw.kkt_residual(bw.bilaplacian(P.V, P.E), Wi, b))
+               kkt_igl=bw.kkt_residual(bw.bilaplacian(P.V, P.Ele), Wi, b))
     return row
 
 
@@ -185,7 +185,7 @@ def format_table(rows: Sequence[dict], machine: dict, settings: dict) -> str:
     lines.append(f"stbs tol {settings['tol']:g}; best of {settings['repeat']} run(s); "
                  + (f"igl.bbw default parameters, up to {nmax:,} vertices" if nmax
                     else "igl.bbw not run (--igl-max-vertices 0)"))
-    lines.append("stbs s = BBWSolver(V, E) + solve (igl.bbw also builds L, M, Q); meshing "
+    lines.append("stbs s = BBWSolver(V, Ele) + solve (igl.bbw also builds L, M, Q); meshing "
                  "not counted; KKT = natural residual of the same QP, in weight units")
     lines.append("both warmed up by one untimed solve of a small problem (loads compiled "
                  "kernels, starts threads)")

@@ -66,8 +66,8 @@ def test_kkt_residual_is_zero_at_the_solution_and_sees_a_violation(small):
     from stbs.weights import BBWSolver
 
     b, bc = bw.boundary(small)
-    W = BBWSolver(small.V, small.E).solve(b, bc[:, :1])
-    Q = bw.bilaplacian(small.V, small.E)
+    W = BBWSolver(small.V, small.Ele).solve(b, bc[:, :1])
+    Q = bw.bilaplacian(small.V, small.Ele)
     assert bw.kkt_residual(Q, W, b) <= 1e-8
     U = np.setdiff1d(np.arange(small.n), b)
     W2 = W.copy()

@@ -2,7 +2,7 @@
 
 Each solve case builds a mesh with the skeleton's samples among its vertices, takes
 the boundary conditions ``b``, ``bc`` of :func:`stbs.weights.boundary_conditions`
-(the first ``m`` functions) and times ``BBWSolver(V, E, backend=...)`` followed by
+(the first ``m`` functions) and times ``BBWSolver(V, Ele, backend=...)`` followed by
 ``.solve(b, bc, tol=...)`` (matrices, factorization and the bounded solve, as a user
 pays them). The result is checked against the KKT conditions of the QP (the natural
 residual, :func:`kkt_residual`). Meshing is timed apart and never counted.
@@ -114,7 +114,7 @@ class Problem:
     name : str
         The case.
     V : (n, d) float64
-    E : (f, 3) or (t, 4) int64
+    Ele : (f, 3) or (t, 4) int64
         Triangles (2D) or tetrahedra (3D).
     sk : Skeleton
     source : str
@@ -125,7 +125,7 @@ class Problem:
 
     name: str
     V: np.ndarray
-    E: np.ndarray
+    Ele: np.ndarray
     sk: Skeleton
     source: str
     meshing_s: float
@@ -136,7 +136,7 @@ class Problem:
 
     @property
     def element_kind(self) -> str:
-        return "tri" if self.E.shape[1] == 3 else "tet"
+        return "tri" if self.Ele.shape[1] == 3 else "tet"
 
 
 def _blob_outline() -> tuple[np.ndarray, Skeleton, float]:
@@ -225,7 +225,7 @@ class _Meshes:
         if key not in self._done:
             self._done[key] = self._build(spec)
         P = self._done[key]
-        return Problem(name, P.V, P.E, P.sk, P.source, P.meshing_s)
+        return Problem(name, P.V, P.Ele, P.sk, P.source, P.meshing_s)
 
     def _build(self, spec: CaseSpec) -> Problem:
         from ..meshing import tetrahedralize, triangulate_2d
@@ -294,20 +294,20 @@ def boundary(P: Problem) -> tuple[np.ndarray, np.ndarray]:
     """``b`` (k,) and ``bc`` (k, b) of :func:`stbs.weights.boundary_conditions` on ``P``."""
     from ..weights import boundary_conditions
 
-    tri = P.E.shape[1] == 3
-    return boundary_conditions(P.V, P.sk, F=P.E if tri else None, T=None if tri else P.E)
+    tri = P.Ele.shape[1] == 3
+    return boundary_conditions(P.V, P.sk, F=P.Ele if tri else None, T=None if tri else P.Ele)
 
 
 # --------------------------------------------------------------------------- checks
-def bilaplacian(V: np.ndarray, E: np.ndarray):
+def bilaplacian(V: np.ndarray, Ele: np.ndarray):
     """``Q = L M^-1 L`` (n, n) CSR, built independently of the solver (libigl's default
     mass matrix: voronoi for triangles, barycentric for tetrahedra)."""
     import scipy.sparse as sp
 
     from ..weights import cotmatrix, massmatrix
 
-    L = sp.csr_array(cotmatrix(V, E))
-    m = massmatrix(V, E).diagonal()
+    L = sp.csr_array(cotmatrix(V, Ele))
+    m = massmatrix(V, Ele).diagonal()
     minv = np.divide(1.0, m, out=np.zeros_like(m), where=m > 0)
     return sp.csr_array(L @ sp.diags_array(minv) @ L)
 
@@ -351,7 +351,7 @@ def warm_up(backend: str = "auto", *, tol: float = DEFAULT_TOL) -> None:
         return
     P = make_problem("2d-small")
     b, bc = boundary(P)
-    BBWSolver(P.V, P.E, backend=backend).solve(b, bc, tol=tol)
+    BBWSolver(P.V, P.Ele, backend=backend).solve(b, bc, tol=tol)
     _WARM.add(("stbs", backend))
 
 
@@ -376,7 +376,7 @@ def solve_case(P: Problem, *, functions: int = 3, backend: str = "auto", repeat:
     b, bc = boundary(P)
     m = min(int(functions), bc.shape[1])
     bc = np.ascontiguousarray(bc[:, :m])
-    row = {"case": P.name, "kind": "solve", "vertices": P.n, "elements": int(P.E.shape[0]),
+    row = {"case": P.name, "kind": "solve", "vertices": P.n, "elements": int(P.Ele.shape[0]),
            "element_kind": P.element_kind, "functions": m, "constrained": int(b.size),
            "meshing_s": P.meshing_s, "source": P.source, "repeat": int(repeat), "tol": tol}
     best, W, report = np.inf, None, None
@@ -385,7 +385,7 @@ def solve_case(P: Problem, *, functions: int = 3, backend: str = "auto", repeat:
         log(f"{P.name}: BBW ({P.n:,} vertices, m={m}, backend {backend}), "
             f"run {r + 1}/{repeat}")
         t = time.perf_counter()
-        solver = BBWSolver(P.V, P.E, backend=backend)
+        solver = BBWSolver(P.V, P.Ele, backend=backend)
         Wr = solver.solve(b, bc, tol=tol)
         dt = time.perf_counter() - t
         if dt < best:
@@ -395,7 +395,7 @@ def solve_case(P: Problem, *, functions: int = 3, backend: str = "auto", repeat:
     row["converged"] = bool(getattr(report, "all_converged", True))
     res = getattr(report, "kkt_residual", None)
     row["kkt_stbs_reported"] = None if res is None else float(np.max(res))
-    row["kkt_stbs"] = kkt_residual(bilaplacian(P.V, P.E), W, b)
+    row["kkt_stbs"] = kkt_residual(bilaplacian(P.V, P.Ele), W, b)
     return (row, W) if return_weights else row
 
 
@@ -425,7 +425,7 @@ def rig_case(P: Problem, *, repeat: int = 1, tol: float = DEFAULT_TOL,
     """
     from ..rig import build_rig
 
-    mesh = {"F": P.E} if P.E.shape[1] == 3 else {"T": P.E}
+    mesh = {"F": P.Ele} if P.Ele.shape[1] == 3 else {"T": P.Ele}
     best = None
     warm_up(tol=tol)
     for r in range(int(repeat)):
@@ -444,7 +444,7 @@ def rig_case(P: Problem, *, repeat: int = 1, tol: float = DEFAULT_TOL,
     total, stages, rig = best
     W = rig.W.toarray() if hasattr(rig.W, "toarray") else np.asarray(rig.W)
     E = rig.E.toarray() if hasattr(rig.E, "toarray") else np.asarray(rig.E)
-    return {"case": P.name, "kind": "rig", "vertices": P.n, "elements": int(P.E.shape[0]),
+    return {"case": P.name, "kind": "rig", "vertices": P.n, "elements": int(P.Ele.shape[0]),
             "element_kind": P.element_kind, "bones": P.sk.n_bones, "meshing_s": P.meshing_s,
             "source": P.source, "repeat": int(repeat), "tol": float(tol), "stages": stages,
             "total_s": total, "W_row_sum_error": float(np.abs(W.sum(axis=1) - 1).max()),
@@ -467,7 +467,7 @@ def format_table(rows: Sequence[dict], machine: dict | None = None,
                           "times") if machine else []
     if settings:
         lines.append(f"tol {settings['tol']:g}; best of {settings['repeat']} run(s)")
-    lines.append("stbs s = BBWSolver(V, E) + solve (matrices, factorization, bounded "
+    lines.append("stbs s = BBWSolver(V, Ele) + solve (matrices, factorization, bounded "
                  "solve); meshing not counted; KKT = natural residual of the QP, in weight "
                  "units")
     lines.append("warmed up by one untimed solve of a small problem (loads compiled "
