@@ -52,6 +52,7 @@ def test_rig_3d_bbw_tetrahedralized(shared_data, tmp_path):
     assert rig.F is not None and rig.T is None  # the user's surface, not our tets
 
 
+@pytest.mark.slow
 def test_rig_elephant_with_its_tips_clipped(shared_data, tmp_path, capsys):
     # elephant.tgf's trunk and tail tips poke out of the skin by 0.05 and 0.11.
     d = shared_data / "libigl-tutorial-data"

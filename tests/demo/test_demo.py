@@ -98,6 +98,7 @@ PNGS = ["fig2_cigar.png", "fig3_box.png", "fig3_bar.png", "fig4_leg.png", "fig5_
 GIFS = ["fig2_cigar.gif", "fig3_box_twist.gif", "fig5_arm_twist.gif", "fig12_picture.gif"]
 
 
+@pytest.mark.slow
 def test_run_demo_writes_every_file_only_inside_out_dir(quick_demo):
     root, out, res, printed, bar = quick_demo
     assert sorted(p.name for p in root.iterdir()) == ["a"]
@@ -118,6 +119,7 @@ def test_run_demo_writes_every_file_only_inside_out_dir(quick_demo):
     assert "10/10" in bar and "fig12" in bar       # the progress lines
 
 
+@pytest.mark.slow
 def test_pictures_are_not_blank_and_the_gallery_links_them(quick_demo):
     from PIL import Image
 
@@ -138,6 +140,7 @@ def test_pictures_are_not_blank_and_the_gallery_links_them(quick_demo):
         assert fig.title.split(":")[0] in html
 
 
+@pytest.mark.slow
 def test_method_panels_differ(quick_demo):
     from stbs.demo.render import Panel, draw_panels
 
@@ -151,6 +154,7 @@ def test_method_panels_differ(quick_demo):
         assert a.shape == b.shape and np.abs(a.astype(int) - b.astype(int)).mean() > 0.5, name
 
 
+@pytest.mark.slow
 def test_numbers_point_the_papers_way(quick_demo):
     n = quick_demo[2].numbers
     # Fig. 2: STBS keeps the cigar's end, LBS grows it
