@@ -265,10 +265,37 @@ def requires(args: argparse.Namespace) -> list[str]:
     return ["PIL"] if args.mesh.lower().endswith(IMAGE_EXTENSIONS) else []
 
 
-def run(args: argparse.Namespace) -> int:
+def rig_from_files(st: _Stages, mesh: str, skeleton: str, *, bone: str, endpoint: str,
+                   tets: str, tol: float, clip_skeleton: bool, threshold: float = 0.5,
+                   invert: bool = False, max_area: float | None = None):
+    """MESH (a mesh, a ``.poly`` outline or a picture) and SKELETON files -> a rig."""
     from ..geometry import polygons_area
-    from ..io import read_mesh, read_skeleton, save_rig
+    from ..io import read_mesh, read_skeleton
     from ..meshing import triangulate_2d
+    from ._errors import CommandError
+
+    outline = mesh.lower().endswith(OUTLINE_EXTENSIONS)
+    if outline:
+        if bone != "bbw":
+            raise CommandError(f"--bone {bone} needs a 3D surface; an outline "
+                               f"({mesh!r}) is rigged with --bone bbw")
+        polygons = read_outline(st, mesh, threshold=threshold, invert=invert)
+        sk = st.run("read skeleton", read_skeleton, skeleton, dim=2)
+        if max_area is None:    # about OUTLINE_TRIANGLES triangles: a smooth field for BBW
+            max_area = max(polygons_area(polygons), 1e-300) / OUTLINE_TRIANGLES
+        tri = st.run("triangulate (bones inside)", triangulate_2d, polygons, sk,
+                     max_area=max_area, clip_skeleton=clip_skeleton)
+        V, F, T = tri.V, tri.F, None
+    else:
+        m = st.run("read mesh", read_mesh, mesh)
+        V, F, T = m.V, m.F, m.T
+        sk = st.run("read skeleton", read_skeleton, skeleton, dim=V.shape[1])
+    return build(st, V, F, T, sk, bone=bone, endpoint=endpoint, tets=tets, mesh_name=mesh,
+                 tol=tol, clip_skeleton=clip_skeleton and not outline, meshed=outline)
+
+
+def run(args: argparse.Namespace) -> int:
+    from ..io import save_rig
     from ._errors import CommandError
 
     out = check_output(args.output)
@@ -283,28 +310,12 @@ def run(args: argparse.Namespace) -> int:
                            f"{args.mesh!r}, whose own vertices are kept")
     if args.max_area is not None and not (math.isfinite(args.max_area) and args.max_area > 0):
         raise CommandError(f"--max-area: expected a positive number, got {args.max_area!r}")
-    if outline:
-        if args.bone != "bbw":
-            raise CommandError(f"--bone {args.bone} needs a 3D surface; an outline "
-                               f"({args.mesh!r}) is rigged with --bone bbw")
-        threshold = 0.5 if args.threshold is None else args.threshold
-        polygons = read_outline(st, args.mesh, threshold=threshold, invert=args.invert)
-        sk = st.run("read skeleton", read_skeleton, args.skeleton, dim=2)
-        max_area = args.max_area
-        if max_area is None:    # about OUTLINE_TRIANGLES triangles: a smooth field for BBW
-            max_area = max(polygons_area(polygons), 1e-300) / OUTLINE_TRIANGLES
-        tri = st.run("triangulate (bones inside)", triangulate_2d, polygons, sk,
-                     max_area=max_area, clip_skeleton=args.clip_skeleton)
-        V, F, T = tri.V, tri.F, None
-    else:
-        mesh = st.run("read mesh", read_mesh, args.mesh)
-        V, F, T = mesh.V, mesh.F, mesh.T
-        sk = st.run("read skeleton", read_skeleton, args.skeleton, dim=V.shape[1])
-    rig = build(st, V, F, T, sk, bone=args.bone, endpoint=args.endpoint, tets=args.tets,
-                mesh_name=args.mesh, tol=tol, clip_skeleton=args.clip_skeleton and not outline,
-                meshed=outline)
+    rig = rig_from_files(st, args.mesh, args.skeleton, bone=args.bone, endpoint=args.endpoint,
+                         tets=args.tets, tol=tol, clip_skeleton=args.clip_skeleton,
+                         threshold=0.5 if args.threshold is None else args.threshold,
+                         invert=args.invert, max_area=args.max_area)
     st.run("write rig", save_rig, out, rig)
     print(st.summary(), file=sys.stderr)
-    print(f"wrote {out}: {len(V)} vertices, {sk.n_bones} bones ({args.bone} bone weights, "
-          f"{args.endpoint} endpoint weights)")
+    print(f"wrote {out}: {len(rig.V)} vertices, {rig.skeleton.n_bones} bones ({args.bone} bone "
+          f"weights, {args.endpoint} endpoint weights)")
     return 0

@@ -154,42 +154,13 @@ def _example(name: str):
 
 def _rig_from_files(args: argparse.Namespace):
     """MESH SKELETON rigged as ``stbs rig`` does (outlines with its default options)."""
-    from ..geometry import polygons_area
-    from ..io import read_mesh, read_skeleton
-    from ..meshing import triangulate_2d
-    from ._errors import CommandError
-    from .rig import (
-        OUTLINE_EXTENSIONS,
-        OUTLINE_TRIANGLES,
-        _Stages,
-        build,
-        read_outline,
-        resolve_tol,
-    )
+    from .rig import _Stages, resolve_tol, rig_from_files
 
     bone = args.bone or "bbw"
     endpoint = args.endpoint or "bbw"
-    tets = args.tets or "auto"
     tol = resolve_tol(args.tol, bone, endpoint)
-    st = _Stages()
-    outline = args.input.lower().endswith(OUTLINE_EXTENSIONS)
-    if outline:
-        if bone != "bbw":
-            raise CommandError(f"--bone {bone} needs a 3D surface; an outline "
-                               f"({args.input!r}) is rigged with --bone bbw")
-        polygons = read_outline(st, args.input, threshold=0.5, invert=False)
-        sk = st.run("read skeleton", read_skeleton, args.skeleton, dim=2)
-        max_area = max(polygons_area(polygons), 1e-300) / OUTLINE_TRIANGLES
-        tri = st.run("triangulate (bones inside)", triangulate_2d, polygons, sk,
-                     max_area=max_area, clip_skeleton=args.clip_skeleton)
-        V, F, T = tri.V, tri.F, None
-    else:
-        mesh = st.run("read mesh", read_mesh, args.input)
-        V, F, T = mesh.V, mesh.F, mesh.T
-        sk = st.run("read skeleton", read_skeleton, args.skeleton, dim=V.shape[1])
-    return build(st, V, F, T, sk, bone=bone, endpoint=endpoint, tets=tets,
-                 mesh_name=args.input, tol=tol,
-                 clip_skeleton=args.clip_skeleton and not outline, meshed=outline)
+    return rig_from_files(_Stages(), args.input, args.skeleton, bone=bone, endpoint=endpoint,
+                          tets=args.tets or "auto", tol=tol, clip_skeleton=args.clip_skeleton)
 
 
 def _serve(args: argparse.Namespace, kind: str, save_as):
