@@ -92,9 +92,10 @@ class Factor:
         elif not _available(backend):
             if backend == "cholmod":
                 raise ImportError("backend 'cholmod' needs SuiteSparse's CHOLMOD library "
-                                  "(Debian: apt-get install libcholmod3 or libsuitesparse-dev) "
-                                  "or the package 'scikit-sparse': pip install "
-                                  "'stbs-skinning[cholmod]'")
+                                  "(Debian: apt-get install libsuitesparse-dev "
+                                  "libopenblas0-pthread), or the package 'scikit-sparse' "
+                                  "built against it; backend 'cholespy' (pip install "
+                                  "'stbs-skinning[weights]') brings CHOLMOD in a wheel")
             raise ImportError(f"backend {backend!r} needs the package {_MODULE[backend]!r}: "
                               f"pip install 'stbs-skinning[weights]'")
         self.backend = backend
