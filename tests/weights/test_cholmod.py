@@ -90,7 +90,7 @@ def test_without_the_library_scikit_sparse_or_nothing(monkeypatch):
         np.testing.assert_allclose(_spd(30, 6) @ f.solve(np.ones(30)), np.ones(30), atol=1e-9)
     monkeypatch.setattr(_cholesky, "_importable", lambda module: module == "scipy")
     assert _cholesky.available_backends() == ["scipy"]
-    with pytest.raises(ImportError, match=r"libsuitesparse-dev.*stbs-skinning\[cholmod\]"):
+    with pytest.raises(ImportError, match=r"libsuitesparse-dev.*stbs-skinning\[weights\]"):
         _cholesky.factorize(sp.eye(3), backend="cholmod")
 
 
