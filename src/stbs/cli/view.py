@@ -29,8 +29,9 @@ rig to --save-as, or beside the input: RIG.npz is saved as RIG-edited.npz (never
 the input unless --save-as names it), MESH as MESH.npz; for an --example only with
 --save-as. Files are written to a temporary file and renamed.
 
-This release has the server and its rig data API only (docs/viewer.md); the page that
-renders and skins the rig in the browser comes later, and the page served now says so."""
+The page draws the rig lit and shaded with its skeleton, skins it in a vertex shader
+with any of the four methods (lbs, dqs, stbs-lbs, stbs-dqs) and can be scripted through
+window.stbsViewer (docs/viewer.md)."""
 EPILOG = f"""examples:
   {EXAMPLE}
   stbs view                                     # the arm example
