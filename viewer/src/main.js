@@ -6,6 +6,7 @@ import * as THREE from "three";
 import { OrbitControls } from "three/examples/jsm/controls/OrbitControls.js";
 import { SkinFeedback } from "./feedback.js";
 import { packBones, posedSegments, restFrames } from "./pose.js";
+import { PoseEditor } from "./edit.js";
 import { MESH_FRAGMENT, MESH_VERTEX, METHODS, TEXELS_PER_BONE } from "./skin.js";
 
 const TOKEN = new URLSearchParams(location.search).get("token") || "";
@@ -101,9 +102,11 @@ class Viewer {
     this.methodIndex = Math.max(0, METHODS.indexOf(info.method));
     this.buildScene();
     await this.fetchPose();
+    this.lastSent = await this.getPose();   // the pose object that gives the current pose
     this.compile();
     this.buildUI();
-    this.render();
+    this.editor = new PoseEditor(this);
+    this.frame();
   }
 
   buildScene() {
@@ -297,12 +300,121 @@ class Viewer {
     return METHODS[i];
   }
 
-  async setPose(pose) {
+  /** POST a pose, upload its arrays, draw; the pose object is kept for undo. */
+  async postPose(pose) {
     const reply = await apiJSON("/api/pose", {
       method: "POST", headers: { "Content-Type": "application/json" }, body: JSON.stringify(pose) });
+    this.lastSent = JSON.parse(JSON.stringify(pose));
     await this.fetchPose();
     this.render();
     return reply.pose;
+  }
+
+  /** The scripting API's setPose: after any edit in flight, then frame the posed mesh. */
+  async setPose(pose) {
+    await this.idle();
+    const back = await this.postPose(pose);
+    this.frame();
+    return back;
+  }
+
+  /** Interactive edits: the latest pose wins; resolves when all sent poses are shown. */
+  send(pose) {
+    this.pending = pose;
+    if (!this.sending) {
+      this.sending = (async () => {
+        try {
+          while (this.pending) {
+            const p = this.pending;
+            this.pending = null;
+            try { await this.postPose(p); } catch (err) { status(`stbs view: ${err.message}`, true); }
+          }
+        } finally { this.sending = null; }
+      })();
+    }
+    return this.sending;
+  }
+
+  /** Resolves once no edit (a sent pose, an undo or redo) is in flight. */
+  async idle() {
+    while (this.sending || (this.editor && this.editor.op)) {
+      await Promise.all([this.sending, this.editor && this.editor.op].map((p) => p && p.catch(() => {})));
+    }
+  }
+
+  /** Posed joint positions (j x 3; rest position for a joint of no bone). */
+  posedJoints() {
+    const { C, BE } = this.arrays, dim = this.dim, j = C.length / dim;
+    const segs = this.skeletonLines.geometry.attributes.position.array;
+    const out = new Float64Array(3 * j), seen = new Uint8Array(j);
+    for (let i = 0; i < this.b; i++) {
+      for (const end of [1, 0]) {
+        const k = BE[2 * i + end];
+        if (seen[k]) continue;
+        seen[k] = 1;
+        for (let c = 0; c < 3; c++) out[3 * k + c] = segs[6 * i + 3 * end + c];
+      }
+    }
+    for (let k = 0; k < j; k++) {
+      if (!seen[k]) for (let c = 0; c < dim; c++) out[3 * k + c] = C[dim * k + c];
+    }
+    return out;
+  }
+
+  /** A world point's position on the page, CSS pixels [x, y]. */
+  toScreen(x, y, z) {
+    const rect = this.renderer.domElement.getBoundingClientRect();
+    const v = new THREE.Vector3(x, y, z).project(this.camera);
+    return [rect.left + 0.5 * (v.x + 1) * rect.width, rect.top + 0.5 * (1 - v.y) * rect.height];
+  }
+
+  jointScreenPositions() {
+    const J = this.posedJoints(), out = [];
+    for (let k = 0; k < J.length / 3; k++) out.push(this.toScreen(J[3 * k], J[3 * k + 1], J[3 * k + 2]));
+    return out;
+  }
+
+  cameraInfo() {
+    const cam = this.camera, rect = this.renderer.domElement.getBoundingClientRect();
+    cam.updateMatrixWorld();
+    return { view: Array.from(cam.matrixWorldInverse.elements),
+             projection: Array.from(cam.projectionMatrix.elements),
+             width: rect.width, height: rect.height, left: rect.left, top: rect.top,
+             orthographic: !!cam.isOrthographicCamera };
+  }
+
+  /** Frame the posed mesh (its skinned positions and the posed joints) in the view. */
+  frame() {
+    const U = this.skinned()[0], J = this.posedJoints();
+    const box = new THREE.Box3(), p = new THREE.Vector3();
+    for (const A of [U, J]) for (let i = 0; i < A.length; i += 3) box.expandByPoint(p.set(A[i], A[i + 1], A[i + 2]));
+    const center = box.getCenter(new THREE.Vector3());
+    const size = box.getSize(new THREE.Vector3());
+    const r = Math.max(0.5 * size.length(), 1e-6);
+    const rect = this.renderer.domElement.getBoundingClientRect();
+    const aspect = Math.max(rect.width, 1) / Math.max(rect.height, 1);
+    const cam = this.camera;
+    if (cam.isOrthographicCamera) {
+      const half = 1.08 * Math.max(0.5 * size.y, 0.5 * size.x / aspect, 1e-6);
+      cam.zoom = 1;
+      cam.top = half; cam.bottom = -half; cam.left = -half * aspect; cam.right = half * aspect;
+      cam.position.set(center.x, center.y, cam.position.z);
+      cam.near = -10 * r - Math.abs(cam.position.z); cam.far = 10 * r + Math.abs(cam.position.z);
+    } else {
+      const dir = cam.position.clone().sub(this.controls.target);
+      if (dir.lengthSq() === 0) dir.set(0, 0, 1);
+      dir.normalize();
+      const halfV = THREE.MathUtils.degToRad(0.5 * cam.fov);
+      const halfH = Math.atan(Math.tan(halfV) * aspect);
+      const dist = 1.05 * r / Math.sin(Math.min(halfV, halfH));
+      cam.position.copy(center).addScaledVector(dir, dist);
+      cam.near = Math.max(dist - 2 * r, dist * 1e-3);
+      cam.far = dist + 4 * r;
+    }
+    cam.updateProjectionMatrix();
+    this.controls.target.copy(center);
+    this.controls.update();
+    this.render();
   }
 
   async getPose() {
@@ -342,6 +454,7 @@ const ready = viewer.load().then(() => {
 });
 
 const whenReady = (f) => (...args) => ready.then(() => f(...args));
+const plain = (a) => Array.from(a);
 
 window.stbsViewer = Object.freeze({
   ready,
@@ -353,4 +466,17 @@ window.stbsViewer = Object.freeze({
   skinnedNormals: whenReady(() => viewer.skinned()[1]),
   restNormals: whenReady(() => viewer.restNormals.slice()),
   timeFrames: whenReady((count) => viewer.timeFrames(count)),
+  frame: whenReady(() => { viewer.frame(); return viewer.cameraInfo(); }),
+  camera: whenReady(() => viewer.cameraInfo()),
+  posedJoints: whenReady(() => {
+    const J = viewer.posedJoints(), out = [];
+    for (let k = 0; k < J.length; k += 3) out.push(plain(J.subarray(k, k + viewer.dim)));
+    return out;
+  }),
+  jointScreenPositions: whenReady(() => viewer.jointScreenPositions()),
+  idle: whenReady(() => viewer.idle().then(() => undefined)),
+  undo: whenReady(() => viewer.editor.undo()),
+  redo: whenReady(() => viewer.editor.redo()),
+  canUndo: () => !!viewer.editor && viewer.editor.undoStack.length > 0,
+  canRedo: () => !!viewer.editor && viewer.editor.redoStack.length > 0,
 });
