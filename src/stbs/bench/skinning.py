@@ -624,22 +624,16 @@ def _parse_sizes(text: str) -> tuple[int, ...]:
     return tuple(out)
 
 
-def _parse_dtypes(text: str) -> tuple[str, ...]:
-    out = tuple(s.strip() for s in str(text).split(","))
-    bad = [s for s in out if s not in DTYPES]
-    if bad:
-        raise argparse.ArgumentTypeError(f"dtype must be a comma-separated list from "
-                                         f"{', '.join(DTYPES)}, got {bad[0]!r}")
-    return out
-
-
-def _parse_methods(text: str) -> tuple[str, ...]:
-    out = tuple(s.strip() for s in str(text).split(","))
-    bad = [s for s in out if s not in METHODS]
-    if bad:
-        raise argparse.ArgumentTypeError(f"methods must be a comma-separated list from "
-                                         f"{', '.join(METHODS)}, got {bad[0]!r}")
-    return out
+def _choice_list(name: str, choices: tuple[str, ...]):
+    """An argparse type: a comma-separated list of ``choices``."""
+    def parse(text: str) -> tuple[str, ...]:
+        out = tuple(s.strip() for s in str(text).split(","))
+        bad = [s for s in out if s not in choices]
+        if bad:
+            raise argparse.ArgumentTypeError(f"{name} must be a comma-separated list from "
+                                             f"{', '.join(choices)}, got {bad[0]!r}")
+        return out
+    return parse
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -650,9 +644,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="bones in the random skeleton (default 20)")
     parser.add_argument("--influences", type=positive_int, default=4,
                         help="non-zero bone weights per vertex (default 4)")
-    parser.add_argument("--dtype", type=_parse_dtypes, default=DTYPES,
+    parser.add_argument("--dtype", type=_choice_list("dtype", DTYPES), default=DTYPES,
                         help="storage dtypes: float64,float32 (default both)")
-    parser.add_argument("--methods", type=_parse_methods, default=METHODS,
+    parser.add_argument("--methods", type=_choice_list("methods", METHODS), default=METHODS,
                         help="methods to time (default lbs,dqs,stbs-lbs,stbs-dqs)")
     parser.add_argument("--repeats", type=positive_int, default=None,
                         help="timed frames per row after 2 warm-up frames "
