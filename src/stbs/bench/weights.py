@@ -327,11 +327,18 @@ def kkt_residual(Q, W: np.ndarray, b: np.ndarray) -> float:
     b : (k,) int
         Constrained vertices.
     """
+    import scipy.sparse as sp
+
+    from ..weights import kkt_residual as box_kkt_residual
+
     W = np.asarray(W, dtype=float)
     U = np.setdiff1d(np.arange(W.shape[0]), b)
-    X = W[U]
-    Z = (Q @ W)[U] / Q.diagonal()[U][:, None]
-    return float(np.abs(X - np.clip(X - Z, 0.0, 1.0)).max()) if U.size else 0.0
+    if not U.size:
+        return 0.0
+    Q = sp.csr_array(Q)
+    QU = Q[U]
+    # the QP over the free vertices: min 1/2 w_U^T Q_UU w_U + (Q_Ub W_b)^T w_U, 0 <= w_U <= 1
+    return float(np.max(box_kkt_residual(QU[:, U], W[U], QU[:, b] @ W[b])))
 
 
 # --------------------------------------------------------------------------- cases
