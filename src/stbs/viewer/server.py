@@ -112,6 +112,10 @@ class _Refused(Exception):
         self.headers = headers or {}
 
 
+def _le_f32(a) -> np.ndarray:
+    return np.ascontiguousarray(a, dtype=np.dtype(np.float32).newbyteorder("<"))
+
+
 def _one_line(exc: BaseException) -> str:
     return " ".join(str(exc).split()) or type(exc).__name__
 
@@ -378,6 +382,53 @@ class ViewerServer:
         return {"path": str(self.rig_target), "vertices": int(len(rig.V)),
                 "bones": int(rig.skeleton.n_bones), "has_E": rig.E is not None}
 
+    def endpoint_column(self, obj: Any) -> tuple[int, str, np.ndarray]:
+        """One bone's endpoint weights by a method of :func:`stbs.weights.endpoint_weights`.
+
+        ``obj``: ``{"bone": index or name, "method": ..., "W": (n, b) rows (optional:
+        the page's current bone weights; default the rig's), "threshold", "alpha",
+        "normalize", "tol", "backend" (each optional, as endpoint_weights takes them)}``.
+        Computed with the rig's rest mesh (``F``, ``T``). Returns ``(bone, method,
+        column (n,) float64 in [0, 1])``.
+        """
+        from ..weights import ENDPOINT_METHODS, endpoint_weights
+
+        options = ("threshold", "alpha", "normalize", "tol", "backend")
+        if not isinstance(obj, dict):
+            raise _Refused(400, 'request body: expected a JSON object {"bone": index or name, '
+                                f'"method": one of {", ".join(ENDPOINT_METHODS)}}}, found '
+                                f"{type(obj).__name__}")
+        extra = sorted(set(obj) - {"bone", "method", "W", *options})
+        if extra:
+            raise _Refused(400, f"request body: unexpected key {extra[0]!r}; expected bone, "
+                                f"method, W, {', '.join(options)}")
+        rig = self.rig
+        sk = rig.skeleton
+        bone = obj.get("bone")
+        if isinstance(bone, bool) or not isinstance(bone, (int, str)):
+            raise _Refused(400, f'"bone": expected a bone index 0..{sk.n_bones - 1} or a bone '
+                                f"name, got {json.dumps(bone)[:80]}")
+        try:
+            i = int(sk.bone_index(bone))
+        except (ValueError, KeyError, IndexError, TypeError) as exc:
+            raise _Refused(400, f'"bone": {_one_line(exc)}') from None
+        method = obj.get("method")
+        if method not in ENDPOINT_METHODS:
+            raise _Refused(400, f'"method": expected one of {", ".join(ENDPOINT_METHODS)}, '
+                                f"got {json.dumps(method)[:80]}")
+        W = obj.get("W")
+        if W is None:
+            W = self.payload.W
+        else:
+            W = self._with_weights(rig, W, None).W
+        kw = {k: obj[k] for k in options if k in obj}
+        try:
+            E = endpoint_weights(rig.V, sk, method=method, W=W, F=rig.F, T=rig.T, **kw)
+        except (ValueError, TypeError) as exc:
+            raise _Refused(400, _one_line(exc)) from None
+        col = E[:, [i]].toarray()[:, 0] if hasattr(E, "toarray") else np.asarray(E)[:, i]
+        return i, str(method), np.clip(np.asarray(col, dtype=np.float64), 0.0, 1.0)
+
     @staticmethod
     def _with_weights(rig: Rig, W, E) -> Rig:
         from .._checks import PARTITION_TOL
@@ -575,7 +626,8 @@ class _Handler(BaseHTTPRequestHandler):
         viewer = self.server.viewer
         routes = {"/api/rig": ("GET",), "/api/pose": ("GET", "POST"),
                   "/api/pose/bones": ("GET",),
-                  "/api/save-pose": ("POST",), "/api/save-rig": ("POST",)}
+                  "/api/save-pose": ("POST",), "/api/save-rig": ("POST",),
+                  "/api/endpoint-weights": ("POST",)}
         m = _ARRAY.match(path)
         allowed = ("GET",) if m else routes.get(path)
         if allowed is None:
@@ -595,6 +647,8 @@ class _Handler(BaseHTTPRequestHandler):
             return self._json(viewer.pose_bones())
         if path == "/api/save-pose":
             return self._json(viewer.save_pose(self._json_body()))
+        if path == "/api/endpoint-weights":
+            return self._endpoint_weights()
         return self._json(viewer.save_rig(*self._weights_body()))
 
     def _static(self, rel: str) -> None:
@@ -621,6 +675,18 @@ class _Handler(BaseHTTPRequestHandler):
         self._send(200, a.tobytes(), "application/octet-stream",
                    headers={"X-Stbs-Dtype": a.dtype.name, "X-Stbs-Shape": shape,
                             "X-Stbs-Byte-Order": "little"})
+
+    def _endpoint_weights(self) -> None:
+        """One bone's recomputed endpoint weights: raw float32 (``Accept:
+        application/octet-stream``) or JSON ``{"bone", "method", "E": [...]}``."""
+        bone, method, col = self.server.viewer.endpoint_column(self._json_body())
+        accept = (self.headers.get("Accept") or "").lower()
+        if "application/octet-stream" in accept:
+            a = _le_f32(col)
+            return self._send(200, a.tobytes(), "application/octet-stream",
+                              headers={"X-Stbs-Dtype": "float32", "X-Stbs-Shape": str(a.size),
+                                       "X-Stbs-Byte-Order": "little", "X-Stbs-Bone": str(bone)})
+        return self._json({"bone": bone, "method": method, "E": col.tolist()})
 
     def _weights_body(self) -> tuple:
         """New ``(W, E)`` for save-rig: none (empty body), JSON, or raw little-endian."""
