@@ -20,7 +20,7 @@ import pytest
 
 SRC = Path(__file__).resolve().parents[1] / "src" / "stbs"
 
-MATHS = {"_checks", "_optional", "geometry", "transforms", "skeleton", "pose", "skinning",
+MATHS = {"_checks", "_optional", "geometry", "transforms", "skeleton", "pose", "clip", "skinning",
          "weights", "meshing", "shapes"}
 DATA = {"rig", "io"}
 FRONT = {"cli", "demo", "bench", "viewer"}

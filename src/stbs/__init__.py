@@ -21,6 +21,7 @@ _EXPORTS = {
     "Skeleton": "stbs.skeleton",
     "Pose": "stbs.pose",
     "forward_kinematics": "stbs.pose",
+    "Clip": "stbs.clip",
     "Deformer": "stbs.skinning",
     "deform": "stbs.skinning",
     "METHODS": "stbs.skinning",
@@ -31,6 +32,8 @@ _EXPORTS = {
     "save_rig": "stbs.io",
     "read_pose": "stbs.io",
     "write_pose": "stbs.io",
+    "read_clip": "stbs.io",
+    "write_clip": "stbs.io",
     "bone_heat": "stbs.weights",
     "bone_weights": "stbs.weights",
     "BBWSolver": "stbs.weights",
@@ -42,9 +45,9 @@ _EXPORTS = {
     "outline_from_image": "stbs.meshing",
 }
 
-__all__ = ["Skeleton", "Pose", "forward_kinematics", "Deformer", "deform", "METHODS",
+__all__ = ["Skeleton", "Pose", "forward_kinematics", "Clip", "Deformer", "deform", "METHODS",
            "endpoint_weights", "Rig", "build_rig", "load_rig", "save_rig", "read_pose",
-           "write_pose", "bone_heat",
+           "write_pose", "read_clip", "write_clip", "bone_heat",
            "bone_weights", "BBWSolver", "bbw", "boundary_conditions",
            "SplineFilter", "triangulate_2d", "tetrahedralize", "outline_from_image",
            "__version__"]
@@ -71,7 +74,8 @@ def __dir__() -> list[str]:
 
 
 if TYPE_CHECKING:  # pragma: no cover - for type checkers and IDEs
-    from .io import load_rig, read_pose, save_rig, write_pose
+    from .clip import Clip
+    from .io import load_rig, read_clip, read_pose, save_rig, write_clip, write_pose
     from .meshing import outline_from_image, tetrahedralize, triangulate_2d
     from .pose import Pose, forward_kinematics
     from .rig import Rig, build_rig

@@ -22,12 +22,15 @@ function               formats
 :func:`save_rig`       .npz rig (a :class:`stbs.Rig`)
 :func:`read_pose`      .json pose (either form, see :mod:`stbs.io.pose`)
 :func:`write_pose`     .json pose
+:func:`read_clip`      .json clip: keyed poses (see :mod:`stbs.io.clip`)
+:func:`write_clip`     .json clip
 :func:`read_polygons`  .poly (Triangle's planar straight-line graph) -> polygons
 =====================  ==============================================
 """
 
 from ._atomic import atomic_open, atomic_save, atomic_write
 from .bf import BoneForest, read_bf
+from .clip import clip_to_dict, read_clip, write_clip
 from .dmat import read_dmat, write_dmat
 from .errors import FormatError
 from .mesh import MESH_READ_EXTENSIONS, MESH_WRITE_EXTENSIONS, Mesh, read_mesh, write_mesh
@@ -45,6 +48,7 @@ __all__ = [
     "SKELETON_READ_EXTENSIONS",
     "read_dmat", "write_dmat", "read_weights", "WEIGHT_READ_EXTENSIONS",
     "save_rig", "load_rig", "RIG_VERSION", "read_pose", "write_pose", "pose_to_dict",
+    "read_clip", "write_clip", "clip_to_dict",
     "read_polygons",
     "atomic_open", "atomic_save", "atomic_write",
 ]
