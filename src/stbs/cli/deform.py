@@ -15,7 +15,9 @@ NAME = "deform"
 HELP = "deform a rigged mesh by a pose (JSON) and write the result"
 EXAMPLE = "stbs deform arm.npz --pose twist.json --method stbs-dqs -o arm-twisted.obj"
 METHODS = ("lbs", "dqs", "stbs-lbs", "stbs-dqs")  # = stbs.METHODS (kept light to import)
-OUTPUT_EXTENSIONS = (".obj", ".off", ".ply", ".npz", ".npy")
+OUTPUT_EXTENSIONS = (".obj", ".off", ".ply", ".npz", ".npy", ".png")
+#: Pixels of the longer side of a .png picture (--size).
+PNG_SIZE = 720
 
 DESCRIPTION = """\
 Deform a rigged mesh by a pose and write the deformed mesh.
@@ -38,6 +40,9 @@ The output format follows the extension of -o:
   .npz            U (n, d) float64 deformed positions, F (f, 3) and/or T (t, 4)
                   when the rig has them, and method (a string)
   .npy            U only
+  .png            a picture of the deformed mesh with its posed skeleton; a rig
+                  made from an image (stbs rig picture.png ...) is drawn with its
+                  picture (needs the demo extra: matplotlib, Pillow)
 It is written to a temporary file and renamed, so a failed run leaves nothing
 behind; the inputs are only read (an output path equal to an input is refused)."""
 
@@ -45,7 +50,8 @@ EPILOG = f"""\
 examples:
   {EXAMPLE}
   stbs deform --mesh arm.obj --skeleton arm.tgf --weights arm-W.dmat \\
-      --endpoint arm-E.dmat --pose twist.json --method stbs-lbs -o arm-twisted.ply"""
+      --endpoint arm-E.dmat --pose twist.json --method stbs-lbs -o arm-twisted.ply
+  stbs deform drawing.npz --pose wave.json -o drawing-waving.png"""
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -62,6 +68,13 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     g.add_argument("--weights", metavar="W", help="bone weights (n, b): .dmat .npy .npz .csv")
     p.add_argument("--endpoint", metavar="E",
                    help="endpoint weights (n, b) in [0, 1]: .dmat .npy .npz .csv")
+    p.add_argument("--size", type=int, default=PNG_SIZE, metavar="PX",
+                   help="-o .png: pixels of the picture's longer side (default: %(default)s)")
+
+
+def requires(args: argparse.Namespace) -> list[str]:
+    """Optional modules this run needs: matplotlib and Pillow for a .png picture."""
+    return ["matplotlib", "PIL"] if str(args.output).lower().endswith(".png") else []
 
 
 @dataclass
@@ -76,6 +89,8 @@ class _Rig:
     E_src: str | None
     inputs: list[Path]
     E_flag: bool = False  # E came from --endpoint
+    texture: Any = None   # a picture rig's picture and texture coordinates
+    UV: Any = None
 
 
 def _output_path(out: str) -> tuple[Path, str]:
@@ -106,7 +121,8 @@ def _load(args) -> _Rig:
                               f"not both (got {args.rig!r} and {', '.join(given)})")
         rig = load_rig(args.rig)
         r = _Rig(rig.V, rig.F, rig.T, rig.skeleton, rig.W, rig.E, f"{args.rig} (W)",
-                 None if rig.E is None else f"{args.rig} (E)", [Path(args.rig)])
+                 None if rig.E is None else f"{args.rig} (E)", [Path(args.rig)],
+                 texture=rig.texture, UV=rig.UV)
     else:
         missing = [k for k, v in files.items() if v is None]
         if missing:
@@ -174,6 +190,30 @@ def _same_file(p: Path, inputs: list[Path]) -> Path | None:
     return None
 
 
+def _picture(out: Path, U, r: _Rig, pose, method: str, size: int) -> None:
+    """The deformed mesh drawn into a PNG (with the rig's picture when it has one)."""
+    import numpy as np
+
+    from ..demo.render import Panel, render_panels
+    from ..geometry import boundary_faces
+
+    F = r.F if r.F is not None else boundary_faces(r.T, r.V) if r.T is not None else None
+    if F is None:
+        raise CommandError(f"output {str(out)!r}: a picture needs triangles or tetrahedra; "
+                          "the mesh has neither")
+    lo, hi = np.min(U, axis=0), np.max(U, axis=0)
+    span = np.maximum(hi - lo, 1e-12)
+    aspect = float(span[0] / span[1]) if U.shape[1] == 2 else 1.0
+    aspect = min(max(aspect, 0.25), 4.0)
+    if aspect >= 1:
+        wh = (size, max(64, round(size / aspect)))
+    else:
+        wh = (max(64, round(size * aspect)), size)
+    picture = {} if r.texture is None else {"texture": r.texture, "uv": r.UV}
+    panel = Panel(V=U, F=F, C=pose.joints(), BE=r.sk.BE, **picture)
+    render_panels(out, [panel], panel_size=wh)
+
+
 def _write(out: Path, ext: str, U, r: _Rig, method: str) -> None:
     import numpy as np
 
@@ -214,8 +254,13 @@ def run(args: argparse.Namespace) -> int:
     pose = read_pose(args.pose, r.sk)
     if _same_file(out, [Path(args.pose)]) is not None:
         raise CommandError(f"output {args.output!r} is the pose file; choose another path")
+    if ext == ".png" and not 64 <= args.size <= 8192:
+        raise CommandError(f"--size: expected 64 to 8192 pixels, got {args.size}")
     _validate(r, args.method)
     U = deform(r.V, r.sk, pose, r.W, r.E, method=args.method)
-    _write(out, ext, U, r, args.method)
+    if ext == ".png":
+        _picture(out, U, r, pose, args.method, args.size)
+    else:
+        _write(out, ext, U, r, args.method)
     print(f"wrote {out}: {U.shape[0]} vertices deformed by {args.method}")
     return 0

@@ -246,12 +246,18 @@ def read_image(path: str):
 def read_outline(st: _Stages, path: str, *, threshold: float, invert: bool) -> list:
     """The polygons of a ``.poly`` file, or of the shape traced in an image."""
     from ..io import read_polygons
-    from ..meshing import outline_from_image
-    from ._errors import CommandError
 
     if path.lower().endswith(".poly"):
         return st.run("read polygons", read_polygons, path)
     image = st.run("read image", read_image, path)
+    return trace_image(st, path, image, threshold=threshold, invert=invert)
+
+
+def trace_image(st: _Stages, path: str, image, *, threshold: float, invert: bool) -> list:
+    """The polygons of the shape traced in an image array (pixel units, y up)."""
+    from ..meshing import outline_from_image
+    from ._errors import CommandError
+
     polygons = st.run("trace outline", outline_from_image, image, threshold=threshold,
                       invert=invert)
     if not polygons:
@@ -279,7 +285,12 @@ def rig_from_files(st: _Stages, mesh: str, skeleton: str, *, bone: str, endpoint
         if bone != "bbw":
             raise CommandError(f"--bone {bone} needs a 3D surface; an outline "
                                f"({mesh!r}) is rigged with --bone bbw")
-        polygons = read_outline(st, mesh, threshold=threshold, invert=invert)
+        image = None
+        if mesh.lower().endswith(IMAGE_EXTENSIONS):
+            image = st.run("read image", read_image, mesh)
+            polygons = trace_image(st, mesh, image, threshold=threshold, invert=invert)
+        else:
+            polygons = read_outline(st, mesh, threshold=threshold, invert=invert)
         sk = st.run("read skeleton", read_skeleton, skeleton, dim=2)
         if max_area is None:    # about OUTLINE_TRIANGLES triangles: a smooth field for BBW
             max_area = max(polygons_area(polygons), 1e-300) / OUTLINE_TRIANGLES
@@ -290,8 +301,37 @@ def rig_from_files(st: _Stages, mesh: str, skeleton: str, *, bone: str, endpoint
         m = st.run("read mesh", read_mesh, mesh)
         V, F, T = m.V, m.F, m.T
         sk = st.run("read skeleton", read_skeleton, skeleton, dim=V.shape[1])
-    return build(st, V, F, T, sk, bone=bone, endpoint=endpoint, tets=tets, mesh_name=mesh,
-                 tol=tol, clip_skeleton=clip_skeleton and not outline, meshed=outline)
+    rig = build(st, V, F, T, sk, bone=bone, endpoint=endpoint, tets=tets, mesh_name=mesh,
+                tol=tol, clip_skeleton=clip_skeleton and not outline, meshed=outline)
+    if outline and image is not None:
+        texture = rgba(image)
+        rig = rig.replace(texture=texture, UV=picture_uv(rig.V, texture.shape))
+    return rig
+
+
+def rgba(image):
+    """An image array (H, W), (H, W, 2|3|4), bool or uint8 -> (H, W, 4) uint8 RGBA."""
+    import numpy as np
+
+    a = np.asarray(image)
+    if a.dtype == bool:
+        a = a.astype(np.uint8) * 255
+    a = a.astype(np.uint8, copy=False)
+    if a.ndim == 2:
+        a = a[:, :, None]
+    c = a.shape[2]
+    rgb = np.repeat(a[:, :, :1], 3, axis=2) if c in (1, 2) else a[:, :, :3]
+    alpha = a[:, :, -1:] if c in (2, 4) else np.full(a.shape[:2] + (1,), 255, np.uint8)
+    return np.ascontiguousarray(np.concatenate([rgb, alpha], axis=2))
+
+
+def picture_uv(V, shape):
+    """Texture coordinates of points in pixel units with y up (pixel (row r, column c) of
+    an H-row image at (c, H - 1 - r)): u = (x + 1/2) / W, v = (y + 1/2) / H, in [0, 1]."""
+    import numpy as np
+
+    h, w = shape[:2]
+    return np.clip((np.asarray(V, dtype=float) + 0.5) / np.array([w, h], dtype=float), 0.0, 1.0)
 
 
 def run(args: argparse.Namespace) -> int:

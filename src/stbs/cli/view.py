@@ -144,9 +144,8 @@ def _example(name: str):
 
         m = picture_2d()
         rig = build_rig(m.V, m.sk, F=m.F, bone="bbw", endpoint="bbw", remesh=False)
-        extras = {"UV": np.asarray(m.extra["uv"], dtype=np.float32),
-                  "texture": np.asarray(m.extra["texture"], dtype=np.uint8)}
-        return rig, extras
+        return rig.replace(texture=np.asarray(m.extra["texture"], dtype=np.uint8),
+                           UV=m.extra["uv"]), {}
     from ..shapes import arm
 
     m = arm()

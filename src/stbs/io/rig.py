@@ -24,10 +24,14 @@ key                        shape, dtype      required  meaning
 ``W_shape``                (2,) int64        yes [1]_  ``[n, b]``
 ``E``, ``E_data``, ...     as ``W``          no        endpoint weights, dense or sparse CSR
 ``meta_json``              (), unicode       no        JSON object: free metadata
+``texture``                (H, W, c) uint8   no [2]_   a picture on the mesh, RGB(A), row 0 on top
+``UV``                     (n, 2) float64    no [2]_   texture coordinates, OpenGL convention
 =========================  ================  ========  ======================================
 
 .. [1] Exactly one of the two forms of ``W`` (dense ``W`` or the four ``W_*``
    keys) is present; the same holds for ``E`` when it is stored.
+.. [2] ``texture`` and ``UV`` come together (a rig made from an image, see
+   :class:`stbs.Rig`); readers of this version that predate them ignore both.
 
 An absent optional key means None (no ``F``, no ``T``, default names, no
 ``E``, empty metadata). Readers check the version first and ignore keys not
@@ -106,6 +110,9 @@ def save_rig(path: str | os.PathLike, rig: Rig) -> None:
         out["names"] = np.asarray(rig.names, dtype=np.str_).reshape(-1)
     _put_weights(out, "W", rig.W)
     _put_weights(out, "E", rig.E)
+    if rig.texture is not None:
+        out["texture"] = rig.texture
+        out["UV"] = np.asarray(rig.UV, dtype=np.float64)
     if rig.meta:
         try:
             text = json.dumps(rig.meta, allow_nan=False)
@@ -244,5 +251,12 @@ def _load(p, z: _Arrays, keys: set) -> Rig:
                               f"dtype {a.dtype}, shape {a.shape}")
     W = _get_weights(p, z, keys, "W", required=True)
     E = _get_weights(p, z, keys, "E", required=False)
+    picture = {}
+    for k, kinds, want in (("texture", "u", "uint8"), ("UV", "f", "float")):
+        if k in keys:
+            a = z[k]
+            if a.dtype.kind not in kinds or (k == "texture" and a.dtype != np.uint8):
+                raise FormatError(p, f"'{k}' of {want} dtype", f"dtype {a.dtype}")
+            picture[k] = a
     return Rig(V=arrays["V"], F=arrays.get("F"), T=arrays.get("T"), C=arrays["C"],
-               BE=arrays["BE"], names=names, W=W, E=E, meta=meta)
+               BE=arrays["BE"], names=names, W=W, E=E, meta=meta, **picture)

@@ -49,6 +49,26 @@ def _elements(name: str, X: Any, k: int, n: int):
     return X
 
 
+def _picture(texture: Any, UV: Any, n: int):
+    """``(texture, UV)`` checked: both None, or an (H, W, 3|4) uint8 image and (n, 2) UVs."""
+    if texture is None and UV is None:
+        return None, None
+    if texture is None or UV is None:
+        given, missing = ("texture", "UV") if UV is None else ("UV", "texture")
+        raise ValueError(f"{given} needs {missing}: give both (a picture and the vertices' "
+                         f"texture coordinates) or neither")
+    tex = np.asarray(texture)
+    if tex.dtype != np.uint8 or tex.ndim != 3 or tex.shape[2] not in (3, 4) \
+            or min(tex.shape[:2]) < 1:
+        raise ValueError(f"texture must be an (H, W, 3) or (H, W, 4) uint8 image, got "
+                         f"{tex.dtype} of shape {tex.shape}")
+    uv = _checks.real_array("UV", UV, ndim=2, shape=(n, 2))
+    lo, hi = float(uv.min(initial=0)), float(uv.max(initial=1))
+    if lo < 0 or hi > 1:
+        raise ValueError(f"UV must lie in [0, 1], got values in [{lo:.6g}, {hi:.6g}]")
+    return np.ascontiguousarray(tex), uv
+
+
 class Rig:
     """A rest mesh with its skeleton and weights.
 
@@ -78,6 +98,14 @@ class Rig:
         Endpoint weights.
     meta : dict, optional
         Free metadata (JSON-serialisable to be saved), e.g. how the weights were made.
+    texture : (H, W, 3) or (H, W, 4) uint8, optional
+        A picture drawn on the mesh (a 2D rig made from an image, paper Fig. 12): RGB or
+        RGBA, row 0 at the top. Needs ``UV``.
+    UV : (n, 2) float, optional
+        Texture coordinates of the vertices in the OpenGL convention: ``u`` across from
+        the picture's left edge, ``v`` up from its bottom edge, both in [0, 1]; vertex
+        ``k`` shows pixel ``(row, col) = ((1 - v) H - 1/2, u W - 1/2)``. Needs
+        ``texture``.
 
     Raises
     ------
@@ -108,7 +136,8 @@ class Rig:
     """
 
     def __init__(self, *, V, W, skeleton: Skeleton | None = None, C=None, BE=None,
-                 names=None, F=None, T=None, E=None, meta: dict | None = None):
+                 names=None, F=None, T=None, E=None, meta: dict | None = None,
+                 texture=None, UV=None):
         V = _checks.vertices(V)
         n, d = V.shape
         if skeleton is not None:
@@ -141,6 +170,7 @@ class Rig:
         if not isinstance(meta, dict):
             raise ValueError(f"meta must be a dict, got {type(meta).__name__}")
         self.meta = meta
+        self.texture, self.UV = _picture(texture, UV, n)
 
     @property
     def skeleton(self) -> Skeleton:
@@ -173,7 +203,8 @@ class Rig:
         The skeleton object is kept unless ``skeleton`` (or ``C``/``BE``/``names``) is
         among the changes.
         """
-        fields = dict(V=self.V, F=self.F, T=self.T, W=self.W, E=self.E, meta=self.meta)
+        fields = dict(V=self.V, F=self.F, T=self.T, W=self.W, E=self.E, meta=self.meta,
+                      texture=self.texture, UV=self.UV)
         if not ({"skeleton", "C", "BE", "names"} & changes.keys()):
             fields["skeleton"] = self._skeleton
         elif "skeleton" not in changes:
@@ -191,4 +222,6 @@ class Rig:
         parts += [f"C={self.C.shape}", f"BE={self.BE.shape}"]
         parts += [f"{k}={'sparse ' if sp.issparse(getattr(self, k)) else ''}"
                   f"{getattr(self, k).shape}" for k in ("W", "E") if getattr(self, k) is not None]
+        if self.texture is not None:
+            parts.append(f"texture={self.texture.shape}")
         return f"Rig({', '.join(parts)})"

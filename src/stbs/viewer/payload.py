@@ -66,7 +66,9 @@ class RigPayload:
     extras : mapping of str to ndarray, optional
         Further arrays to serve, e.g. ``{"UV": (n, 2) float32, "texture": (h, w, 4)
         uint8}`` for a textured 2D picture; names are letters and digits, dtypes
-        float32, uint8, uint16, uint32 or int32.
+        float32, uint8, uint16, uint32 or int32. A rig with a picture
+        (``rig.texture``, ``rig.UV``) serves it as ``texture`` (RGBA) and ``UV``
+        unless extras of those names are given.
 
     Raises
     ------
@@ -100,6 +102,13 @@ class RigPayload:
                 raise ValueError(f"extras[{name!r}]: expected dtype float32, uint8, uint16, "
                                  f"uint32 or int32, got {a.dtype}")
             self._extras[name] = _le(a, a.dtype)
+        self._given = set(self._extras)
+        if rig.texture is not None:     # a picture rig (stbs rig image.png): its picture
+            tex = rig.texture
+            if tex.shape[2] == 3:
+                tex = np.concatenate([tex, np.full(tex.shape[:2] + (1,), 255, np.uint8)], axis=2)
+            self._extras.setdefault("texture", _le(tex, np.uint8))
+            self._extras.setdefault("UV", _le(rig.UV, np.float32))
         self._cache: dict[str, np.ndarray] = {}
         self._makers: dict[str, Callable[[], np.ndarray]] = {
             "V": lambda: _le(rig.V, np.float32),
@@ -138,8 +147,8 @@ class RigPayload:
 
     @property
     def extras(self) -> dict[str, np.ndarray]:
-        """The extra arrays given to the payload (name -> array)."""
-        return dict(self._extras)
+        """The extra arrays given to the payload (name -> array), not the rig's picture."""
+        return {k: a for k, a in self._extras.items() if k in self._given}
 
     @property
     def names(self) -> list[str]:
