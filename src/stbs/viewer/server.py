@@ -20,10 +20,11 @@ request goes through, in this order (docs/viewer.md has the full API):
 5. **Bodies** are read only with a ``Content-Length`` (chunked bodies: 411) of at most
    ``max_body`` bytes (else 413, without reading it).
 
-Writes (``/api/save-pose``, ``/api/save-rig``) go to a temporary file then rename
+Writes (``/api/save-pose``, ``/api/save-clip``, ``/api/export``, ``/api/save-rig``)
+go to a temporary file then rename
 (:mod:`stbs.io`'s atomic writers), only into the folder and the file the server was
 given (``pose_folder``, ``rig_target``); the client names at most a bare ``.json``
-file name in that folder.
+file name in that folder (a bare ``.gif`` name for an export).
 """
 
 from __future__ import annotations
@@ -46,6 +47,7 @@ import numpy as np
 from ..io import pose_to_dict, read_pose, save_rig, write_pose
 from ..pose import Pose
 from ..rig import Rig
+from . import clips
 from .payload import RigPayload
 
 __all__ = ["ViewerServer", "STATIC_DIR", "MAX_BODY", "HOST", "TOKEN_HEADER",
@@ -64,6 +66,9 @@ POSE_NAME = re.compile(r"[A-Za-z0-9_][A-Za-z0-9_.-]{0,99}\.json\Z")
 
 _SEGMENT = re.compile(r"[A-Za-z0-9_-][A-Za-z0-9_.-]*\Z")
 _ARRAY = re.compile(r"/api/rig/([A-Za-z0-9]+)\.bin\Z")
+#: The clip routes (all POST) and the ViewerServer method that answers each.
+_CLIP_ROUTES = {"/api/clip/sample": "clip_sample", "/api/clip/pose": "set_clip_pose",
+                "/api/save-clip": "save_clip", "/api/export": "export_clip"}
 _TYPES = {".html": "text/html; charset=utf-8", ".js": "text/javascript; charset=utf-8",
           ".mjs": "text/javascript; charset=utf-8", ".css": "text/css; charset=utf-8",
           ".json": "application/json", ".map": "application/json",
@@ -361,6 +366,30 @@ class ViewerServer:
                                     f"{exc.strerror or _one_line(exc)}") from None
         return {"path": str(target), "name": name}
 
+    # ------------------------------------------------------------------ clips (clips.py)
+    def clip_sample(self, obj: Any) -> dict:
+        """``POST /api/clip/sample``: the clip's poses as per-frame bone arrays."""
+        return clips.sample(obj, self.rig.skeleton)
+
+    def set_clip_pose(self, obj: Any) -> dict:
+        """``POST /api/clip/pose``: make the clip's pose at a time the current pose."""
+        pose, t = clips.clip_pose(obj, self.rig.skeleton)
+        pose_obj, exact = clips.pose_object(pose)
+        with self._lock:
+            self.pose = pose
+            self._pose_obj = pose_obj
+        return {"pose": dict(pose_obj), "exact": exact, "time": t}
+
+    def save_clip(self, obj: Any) -> dict:
+        """``POST /api/save-clip``: write a clip file into the pose folder."""
+        with self._lock:
+            return clips.save_clip(obj, self.rig.skeleton, self.pose_folder, self.name)
+
+    def export_clip(self, obj: Any) -> dict:
+        """``POST /api/export``: write the page's frames as an animated GIF (pose folder)."""
+        with self._lock:
+            return clips.export_gif(obj, self.pose_folder, self.name)
+
     def save_rig(self, W=None, E=None) -> dict:
         if self.rig_target is None:
             raise _Refused(409, "saving the rig is off: start stbs view with --save-as PATH")
@@ -628,6 +657,7 @@ class _Handler(BaseHTTPRequestHandler):
                   "/api/pose/bones": ("GET",),
                   "/api/save-pose": ("POST",), "/api/save-rig": ("POST",),
                   "/api/endpoint-weights": ("POST",)}
+        routes.update(dict.fromkeys(_CLIP_ROUTES, ("POST",)))
         m = _ARRAY.match(path)
         allowed = ("GET",) if m else routes.get(path)
         if allowed is None:
@@ -649,7 +679,18 @@ class _Handler(BaseHTTPRequestHandler):
             return self._json(viewer.save_pose(self._json_body()))
         if path == "/api/endpoint-weights":
             return self._endpoint_weights()
+        if path in _CLIP_ROUTES:
+            return self._clip_route(path)
         return self._json(viewer.save_rig(*self._weights_body()))
+
+    def _clip_route(self, path: str) -> None:
+        viewer = self.server.viewer
+        call = getattr(viewer, _CLIP_ROUTES[path])
+        body = self._json_body()
+        try:
+            return self._json(call(body))
+        except clips.Refusal as r:
+            raise _Refused(r.status, r.message) from None
 
     def _static(self, rel: str) -> None:
         p = static_path(self.server.viewer.static_dir, rel)

@@ -1,0 +1,220 @@
+"""The viewer server's clip routes over plain HTTP: sample, pose at a time, save, export."""
+
+from __future__ import annotations
+
+import base64
+import io
+import json
+import re
+
+import numpy as np
+import pytest
+from viewer_client import bar_rig, post_json, request
+
+import stbs
+from stbs.viewer import ViewerServer
+
+KEYS = [
+    {"time": 0.0, "pose": {}},
+    {"time": 1.0, "pose": {"rotate": {"upper": {"axis": [0, 0, 1], "angle": 90}},
+                           "stretch": {"lower": 2.0}}},
+    {"time": 1.5, "pose": {"twist": {"lower": [0, 720]}}},
+]
+CLIP = {"fps": 4, "interpolation": "linear", "keys": KEYS}
+
+
+@pytest.fixture(scope="module")
+def srv(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("poses")
+    with ViewerServer(bar_rig(), pose_folder=folder, name="bar") as s:
+        yield s
+
+
+@pytest.fixture(scope="module")
+def nosave():
+    with ViewerServer(bar_rig()) as s:
+        yield s
+
+
+def _pose(frame, sk):
+    return stbs.Pose(sk, rotations=frame["rotations"], origins=frame["origins"],
+                     stretch=frame["stretch"], twist=frame["twist"])
+
+
+def test_sample_gives_the_clip_on_its_fps_grid(srv):
+    r = post_json(srv, "/api/clip/sample", CLIP)
+    assert r.status == 200, r.body
+    out = r.json()
+    assert out["fps"] == 4 and out["duration"] == 1.5 and out["keys"] == [0.0, 1.0, 1.5]
+    assert out["times"] == [0.0, 0.25, 0.5, 0.75, 1.0, 1.25, 1.5]
+    assert len(out["frames"]) == 7
+    sk = srv.rig.skeleton
+    # by hand: halfway to the second key the upper bone is turned 45 degrees about z,
+    # the lower one stretched 1.5; at 1.25 the lower bone's end twist is 360 degrees
+    half = _pose(out["frames"][2], sk)
+    assert np.allclose(half.rotations[0] @ [1, 0, 0], [np.sqrt(0.5), np.sqrt(0.5), 0])
+    assert half.stretch.tolist() == pytest.approx([1.0, 1.5])
+    assert np.degrees(_pose(out["frames"][5], sk).twist[1, 1]) == pytest.approx(360.0)
+    clip = stbs.io.read_clip(CLIP, sk)
+    for t, frame in zip(out["times"], out["frames"], strict=True):
+        ref = clip.pose(t)
+        got = _pose(frame, sk)
+        for a, b in ((got.rotations, ref.rotations), (got.origins, ref.origins),
+                     (got.stretch, ref.stretch), (got.twist, ref.twist)):
+            assert np.abs(a - b).max() < 1e-12
+
+
+def test_sample_at_explicit_times(srv):
+    r = post_json(srv, "/api/clip/sample", dict(CLIP, times=[0.3, -1, 9]))
+    assert r.status == 200, r.body
+    out = r.json()
+    assert out["times"] == [0.3, -1.0, 9.0]
+    sk = srv.rig.skeleton
+    f = [_pose(x, sk) for x in out["frames"]]
+    assert f[0].stretch[1] == pytest.approx(1.3)
+    assert f[1].is_rest()                                   # clamped before the first key
+    assert np.degrees(f[2].twist[1, 1]) == pytest.approx(720.0)    # after the last
+
+
+def test_clip_pose_becomes_the_current_pose(srv):
+    r = post_json(srv, "/api/clip/pose", {"clip": CLIP, "time": 0.5})
+    assert r.status == 200, r.body
+    out = r.json()
+    assert out["time"] == 0.5
+    # halfway between rest and a bent, stretched pose the lower bone's start is
+    # interpolated linearly and leaves the upper bone's end: no pose-file form holds it
+    assert out["exact"] is False and "joints" in out["pose"]
+    ref = stbs.io.read_clip(CLIP, srv.rig.skeleton).pose(0.5)
+    bones = request(srv, "GET", "/api/pose/bones", token=True).json()
+    assert np.abs(np.array(bones["rotations"]) - ref.rotations).max() < 1e-12
+    assert np.abs(np.array(bones["origins"]) - ref.origins).max() < 1e-12
+    assert request(srv, "GET", "/api/pose", token=True).json() == out["pose"]
+    # on a key: exact, and the pose object reads back to the key's pose
+    out = post_json(srv, "/api/clip/pose", {"clip": CLIP, "time": 1.0}).json()
+    assert out["exact"] is True
+    back = stbs.io.read_pose(out["pose"], srv.rig.skeleton)
+    assert back.stretch.tolist() == pytest.approx([1.0, 2.0])
+
+
+def test_save_clip_writes_a_clip_file(srv):
+    r = post_json(srv, "/api/save-clip", {"clip": CLIP, "name": "walk.json"})
+    assert r.status == 200, r.body
+    out = r.json()
+    assert out["name"] == "walk.json" and out["keys"] == 3
+    path = srv.pose_folder / "walk.json"
+    assert out["path"] == str(path)
+    back = stbs.io.read_clip(path, srv.rig.skeleton)
+    assert back.times.tolist() == [0.0, 1.0, 1.5] and back.fps == 4
+    ref = stbs.io.read_clip(CLIP, srv.rig.skeleton)
+    for (_, a), (_, b) in zip(ref.keys, back.keys, strict=True):
+        assert np.abs(a.rotations - b.rotations).max() < 1e-12
+        assert np.abs(a.twist - b.twist).max() < 1e-12
+    # no overwrite without asking; with it, replaced
+    r = post_json(srv, "/api/save-clip", {"clip": dict(CLIP, fps=8), "name": "walk.json"})
+    assert r.status == 409 and "overwrite" in r.json()["error"]
+    r = post_json(srv, "/api/save-clip", {"clip": dict(CLIP, fps=8), "name": "walk.json",
+                                          "overwrite": True})
+    assert r.status == 200 and stbs.io.read_clip(path, srv.rig.skeleton).fps == 8
+    # default names count up
+    names = [post_json(srv, "/api/save-clip", {"clip": CLIP}).json()["name"] for _ in range(2)]
+    assert names == ["bar-clip-001.json", "bar-clip-002.json"]
+    assert not [p for p in srv.pose_folder.iterdir() if p.name.startswith(".")]
+
+
+@pytest.mark.parametrize("path, body, status, match", [
+    ("/api/clip/sample", [1], 400, "clip: expected a JSON object"),
+    ("/api/clip/sample", {"keys": []}, 400, 'clip: "keys": expected a non-empty list'),
+    ("/api/clip/sample", {"keys": [{"time": 0, "pose": {"stretch": {"lower": 0}}}]}, 400,
+     r'clip: keys\[0\]\.pose: "stretch" bone \'lower\': stretch must be > 0'),
+    ("/api/clip/sample", dict(CLIP, times=[]), 400, '"times": expected a list of 1 to 2000'),
+    ("/api/clip/sample", dict(CLIP, times=[0, "x"]), 400, r'"times"\[1\]: expected a finite'),
+    ("/api/clip/sample", dict(CLIP, fps=10000), 400, "at most 2000 are sampled"),
+    ("/api/clip/pose", {"clip": CLIP}, 400, 'request body: missing "time"'),
+    ("/api/clip/pose", {"clip": CLIP, "time": True}, 400, '"time": expected a finite number'),
+    ("/api/save-clip", {"clip": CLIP, "name": "../x.json"}, 400,
+     '"name": expected a bare file name ending in .json'),
+    ("/api/save-clip", {"clip": CLIP, "name": "x.json", "overwrite": 1}, 400,
+     '"overwrite": expected true or false'),
+    ("/api/save-clip", {"clip": CLIP, "as": "x"}, 400, "unexpected key 'as'"),
+    ("/api/export", {"frames": ["AAAA"], "fps": 10}, 400,
+     r'"frames"\[0\]: expected a PNG image, found 3 bytes'),
+    ("/api/export", {"frames": [], "fps": 10}, 400, '"frames": expected a list of 1 to 600'),
+    ("/api/export", {"frames": ["!!"], "fps": 10}, 400, r'"frames"\[0\]: not valid base64'),
+    ("/api/export", {"frames": ["data:image/jpeg;base64,AAAA"], "fps": 10}, 400,
+     "expected a data:image/png;base64 URL"),
+    ("/api/export", {"frames": ["AAAA"], "fps": 0}, 400, r'"fps": expected a number in \(0, 100\]'),
+    ("/api/export", {"frames": ["AAAA"], "fps": 10, "format": "mp4"}, 400,
+     '"format": expected "gif"'),
+])
+def test_bad_requests_get_one_clear_line(srv, path, body, status, match):
+    r = post_json(srv, path, body)
+    assert r.status == status, r.body
+    err = r.json()["error"]
+    assert "\n" not in err
+    assert re.search(match, err), err
+
+
+def _png(color, size=(24, 16)):
+    from PIL import Image
+
+    buf = io.BytesIO()
+    Image.new("RGB", size, color).save(buf, format="PNG")
+    return base64.b64encode(buf.getvalue()).decode()
+
+
+def test_export_writes_an_animated_gif(srv):
+    from PIL import Image
+
+    colors = [(255, 0, 0), (0, 255, 0), (0, 0, 255), (255, 255, 0)]
+    frames = [_png(c) for c in colors]
+    frames[1] = "data:image/png;base64," + frames[1]            # canvas.toDataURL() form
+    r = post_json(srv, "/api/export", {"frames": frames, "fps": 10, "name": "spin.gif"})
+    assert r.status == 200, r.body
+    out = r.json()
+    path = srv.pose_folder / "spin.gif"
+    assert out == {"path": str(path), "name": "spin.gif", "frames": 4, "width": 24, "height": 16,
+                   "fps": 10.0}
+    with Image.open(path) as im:
+        assert im.format == "GIF" and im.n_frames == 4 and im.size == (24, 16)
+        seen = []
+        for k in range(4):
+            im.seek(k)
+            seen.append(im.convert("RGB").getpixel((5, 5)))
+            assert im.info["duration"] == 100
+        assert im.info.get("loop") == 0
+    assert seen == colors
+    r = post_json(srv, "/api/export", {"frames": frames, "fps": 10, "name": "spin.gif"})
+    assert r.status == 409
+    r = post_json(srv, "/api/export", {"frames": [_png((0, 0, 0)), _png((0, 0, 0), (8, 8))],
+                                       "fps": 10})
+    assert r.status == 400 and "must have the size of frame 0 (24 x 16)" in r.json()["error"]
+
+
+def test_export_without_pillow_says_what_to_install(srv, monkeypatch):
+    import stbs._optional as opt
+
+    real = opt.available
+    monkeypatch.setattr(opt, "available", lambda m: False if m == "PIL" else real(m))
+    r = post_json(srv, "/api/export", {"frames": [_png((1, 2, 3))], "fps": 10})
+    assert r.status == 501
+    assert r.json()["error"].startswith("exporting a GIF needs pillow, which is not installed")
+
+
+def test_saving_is_refused_without_a_folder(nosave):
+    for path, body in (("/api/save-clip", {"clip": CLIP}),
+                       ("/api/export", {"frames": [_png((1, 2, 3))], "fps": 10})):
+        r = post_json(nosave, path, body)
+        assert r.status == 409 and "--save-as" in r.json()["error"]
+    # sampling needs no folder
+    assert post_json(nosave, "/api/clip/sample", CLIP).status == 200
+
+
+def test_the_clip_routes_need_the_token_and_post(srv):
+    body = json.dumps(CLIP)
+    for path in ("/api/clip/sample", "/api/clip/pose", "/api/save-clip", "/api/export"):
+        assert request(srv, "POST", path, body=body).status == 403
+        assert request(srv, "POST", path, body=body, token="0" * 32).status == 403
+        assert request(srv, "POST", path, body=body, token=True,
+                       host="evil.example:80").status == 403
+        r = request(srv, "GET", path, token=True)
+        assert r.status == 405 and r.headers["allow"] == "POST"
