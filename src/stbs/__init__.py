@@ -22,6 +22,7 @@ _EXPORTS = {
     "Pose": "stbs.pose",
     "forward_kinematics": "stbs.pose",
     "Clip": "stbs.clip",
+    "Motion": "stbs.motion",
     "Deformer": "stbs.skinning",
     "deform": "stbs.skinning",
     "METHODS": "stbs.skinning",
@@ -34,6 +35,7 @@ _EXPORTS = {
     "write_pose": "stbs.io",
     "read_clip": "stbs.io",
     "write_clip": "stbs.io",
+    "read_bvh": "stbs.io",
     "bone_heat": "stbs.weights",
     "bone_weights": "stbs.weights",
     "BBWSolver": "stbs.weights",
@@ -45,9 +47,10 @@ _EXPORTS = {
     "outline_from_image": "stbs.meshing",
 }
 
-__all__ = ["Skeleton", "Pose", "forward_kinematics", "Clip", "Deformer", "deform", "METHODS",
+__all__ = ["Skeleton", "Pose", "forward_kinematics", "Clip", "Motion", "Deformer", "deform",
+           "METHODS",
            "endpoint_weights", "Rig", "build_rig", "load_rig", "save_rig", "read_pose",
-           "write_pose", "read_clip", "write_clip", "bone_heat",
+           "write_pose", "read_clip", "write_clip", "read_bvh", "bone_heat",
            "bone_weights", "BBWSolver", "bbw", "boundary_conditions",
            "SplineFilter", "triangulate_2d", "tetrahedralize", "outline_from_image",
            "__version__"]
@@ -75,8 +78,9 @@ def __dir__() -> list[str]:
 
 if TYPE_CHECKING:  # pragma: no cover - for type checkers and IDEs
     from .clip import Clip
-    from .io import load_rig, read_clip, read_pose, save_rig, write_clip, write_pose
+    from .io import load_rig, read_bvh, read_clip, read_pose, save_rig, write_clip, write_pose
     from .meshing import outline_from_image, tetrahedralize, triangulate_2d
+    from .motion import Motion
     from .pose import Pose, forward_kinematics
     from .rig import Rig, build_rig
     from .skeleton import Skeleton

@@ -24,12 +24,14 @@ function               formats
 :func:`write_pose`     .json pose
 :func:`read_clip`      .json clip: keyed poses (see :mod:`stbs.io.clip`)
 :func:`write_clip`     .json clip
+:func:`read_bvh`       .bvh motion capture -> :class:`stbs.Motion`
 :func:`read_polygons`  .poly (Triangle's planar straight-line graph) -> polygons
 =====================  ==============================================
 """
 
 from ._atomic import atomic_open, atomic_save, atomic_write
 from .bf import BoneForest, read_bf
+from .bvh import read_bvh
 from .clip import clip_to_dict, read_clip, write_clip
 from .dmat import read_dmat, write_dmat
 from .errors import FormatError
@@ -49,6 +51,6 @@ __all__ = [
     "read_dmat", "write_dmat", "read_weights", "WEIGHT_READ_EXTENSIONS",
     "save_rig", "load_rig", "RIG_VERSION", "read_pose", "write_pose", "pose_to_dict",
     "read_clip", "write_clip", "clip_to_dict",
-    "read_polygons",
+    "read_polygons", "read_bvh",
     "atomic_open", "atomic_save", "atomic_write",
 ]

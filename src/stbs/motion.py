@@ -1,0 +1,193 @@
+"""Joint motion: a hierarchy of joints and, per frame, each joint's local transform.
+
+Motion capture (BVH, :func:`stbs.io.read_bvh`) and glTF animations describe motion on
+the *joints* of a hierarchy, each with a local rotation and translation relative to
+its parent, not on the bones of a :class:`stbs.Skeleton`. A :class:`Motion` holds that
+data as it comes and evaluates it by forward kinematics; retargeting turns it into
+poses of a rig.
+
+Convention: a joint's local transform maps its own frame to its parent's,
+``x_parent = R x + t``; a root's parent frame is the world. In the rest pose every
+rotation is the identity and every translation the joint's offset.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from . import _checks
+
+__all__ = ["Motion"]
+
+
+class Motion:
+    """Per-frame local rotations and translations of a joint hierarchy.
+
+    Parameters
+    ----------
+    names : sequence of j str
+        Joint names, unique.
+    parents : (j,) int
+        Parent joint of each joint, -1 for a root; every parent comes before its
+        children.
+    offsets : (j, 3) float
+        Each joint's rest position in its parent's frame (a root's: in the world).
+    rotations : (f, j, 3, 3) float
+        Local rotation of each joint in each frame (proper rotations).
+    translations : (f, j, 3) float, optional
+        Local translation of each joint in each frame; default: the offsets in every
+        frame (only roots and joints with position channels move otherwise).
+    frame_time : float
+        Seconds between frames (> 0).
+    end_site : (j,) bool, optional
+        Joints that only mark where a chain ends (BVH ``End Site``): no channels, a
+        rotation that is always the identity. Default: none.
+
+    Raises
+    ------
+    ValueError
+        Shapes that do not fit together, non-finite values, repeated names, a parent
+        out of range or after its child, rotations that are not rotations, or a
+        ``frame_time`` that is not positive; the message names the argument.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> R = np.tile(np.eye(3), (2, 2, 1, 1))          # 2 frames, 2 joints
+    >>> R[1, 0] = [[0, -1, 0], [1, 0, 0], [0, 0, 1]]   # frame 1: the root turns 90 deg about z
+    >>> m = Motion(["hip", "knee"], [-1, 0], [[0, 0, 0], [1, 0, 0]], rotations=R,
+    ...            frame_time=1 / 30)
+    >>> m.n_frames, m.n_joints, m.fps
+    (2, 2, 30.0)
+    >>> m.positions()[:, 1].round(6)                   # the knee, per frame
+    array([[1., 0., 0.],
+           [0., 1., 0.]])
+    """
+
+    def __init__(self, names: Sequence[str], parents, offsets, *, rotations,
+                 translations=None, frame_time: float, end_site=None):
+        names = [str(s) for s in names]
+        j = len(names)
+        if len(set(names)) != j:
+            seen: set[str] = set()
+            dup = next(s for s in names if s in seen or seen.add(s))
+            raise ValueError(f"names must be unique, got {dup!r} twice")
+        P = _checks.index_array("parents", parents, ndim=1)
+        if P.shape != (j,):
+            raise ValueError(f"parents must have shape ({j},) like names, got {P.shape}")
+        for k, p in enumerate(P):
+            if not -1 <= p < k:
+                raise ValueError(f"parents[{k}] must be -1 or a joint before {k}, got {int(p)}")
+        O = _checks.real_array("offsets", offsets, ndim=2, shape=(j, 3))
+        R = _checks.real_array("rotations", rotations, ndim=4, shape=(None, j, 3, 3))
+        f = R.shape[0]
+        if f < 1:
+            raise ValueError("rotations must hold at least one frame, got 0")
+        err = np.abs(np.einsum("fjik,fjil->fjkl", R, R) - np.eye(3)).max()
+        if err > 1e-6 or (np.linalg.det(R) < 0).any():
+            raise ValueError(f"rotations must be proper rotations (R^T R = I, det 1), off by "
+                             f"{err:.3g}")
+        if translations is None:
+            T = np.broadcast_to(O, (f, j, 3)).copy()
+        else:
+            T = _checks.real_array("translations", translations, ndim=3, shape=(f, j, 3))
+        dt = float(frame_time)
+        if not (np.isfinite(dt) and dt > 0):
+            raise ValueError(f"frame_time must be a positive number of seconds, got {frame_time!r}")
+        es = np.zeros(j, dtype=bool) if end_site is None else np.asarray(end_site, dtype=bool)
+        if es.shape != (j,):
+            raise ValueError(f"end_site must have shape ({j},) like names, got {es.shape}")
+        self.names = names
+        self.parents = P.astype(np.int64)
+        self.offsets = O
+        self.rotations = R
+        self.translations = T
+        self.frame_time = dt
+        self.end_site = es
+
+    # ------------------------------------------------------------------ sizes
+    @property
+    def n_frames(self) -> int:
+        return int(self.rotations.shape[0])
+
+    @property
+    def n_joints(self) -> int:
+        """Joints, end sites included."""
+        return len(self.names)
+
+    @property
+    def fps(self) -> float:
+        """Frames per second, ``1 / frame_time``."""
+        return 1.0 / self.frame_time
+
+    @property
+    def times(self) -> np.ndarray:
+        """(f,) seconds of each frame, from 0."""
+        return np.arange(self.n_frames) * self.frame_time
+
+    def index(self, name: str) -> int:
+        """The joint called ``name``; ValueError listing the names when there is none."""
+        try:
+            return self.names.index(name)
+        except ValueError:
+            raise ValueError(f"no joint named {name!r}; the joints are "
+                             f"{', '.join(self.names)}") from None
+
+    def children(self, k: int) -> list[int]:
+        """The joints whose parent is ``k``."""
+        return [int(c) for c in np.flatnonzero(self.parents == k)]
+
+    # ------------------------------------------------------------------ kinematics
+    def _frames(self, frames) -> np.ndarray:
+        if frames is None:
+            return np.arange(self.n_frames)
+        idx = _checks.index_array("frames", np.atleast_1d(frames), ndim=1)
+        if idx.size and (idx.min() < -self.n_frames or idx.max() >= self.n_frames):
+            raise ValueError(f"frames must lie in 0..{self.n_frames - 1}, got "
+                             f"{int(idx.min() if idx.min() < 0 else idx.max())}")
+        return idx % self.n_frames
+
+    def global_transforms(self, frames=None) -> tuple[np.ndarray, np.ndarray]:
+        """World rotation and position of every joint's frame, by forward kinematics.
+
+        Parameters
+        ----------
+        frames : int or (k,) int, optional
+            Frame indices (default: all).
+
+        Returns
+        -------
+        R : (k, j, 3, 3) float
+        t : (k, j, 3) float
+            ``x_world = R[:, i] x + t[:, i]`` for a point ``x`` in joint ``i``'s frame;
+            ``t`` is the joint's world position.
+        """
+        idx = self._frames(frames)
+        Rl, Tl = self.rotations[idx], self.translations[idx]
+        R, t = np.empty_like(Rl), np.empty_like(Tl)
+        for k, p in enumerate(self.parents):     # parents come first: one pass
+            if p < 0:
+                R[:, k], t[:, k] = Rl[:, k], Tl[:, k]
+            else:
+                R[:, k] = R[:, p] @ Rl[:, k]
+                t[:, k] = np.einsum("fab,fb->fa", R[:, p], Tl[:, k]) + t[:, p]
+        return R, t
+
+    def positions(self, frames=None) -> np.ndarray:
+        """(k, j, 3) world joint positions in the given frames (default: all)."""
+        return self.global_transforms(frames)[1]
+
+    def rest_positions(self) -> np.ndarray:
+        """(j, 3) world joint positions with every rotation the identity and every
+        translation the offset (the hierarchy as drawn in the file)."""
+        X = np.zeros_like(self.offsets)
+        for k, p in enumerate(self.parents):
+            X[k] = self.offsets[k] + (X[p] if p >= 0 else 0.0)
+        return X
+
+    def __repr__(self) -> str:
+        return (f"Motion({self.n_joints - int(self.end_site.sum())} joints + "
+                f"{int(self.end_site.sum())} end sites, {self.n_frames} frames at "
+                f"{self.fps:.6g} fps)")
