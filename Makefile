@@ -11,6 +11,8 @@ DEMO_OUT ?= demo-out
 WHEEL_CHECK := build/wheel-check
 # The viewer page's bundle (three.js and viewer/src, by esbuild): built, never committed.
 VIEWER_JS := src/stbs/viewer/static/viewer.js
+# The peer page's bundle for stbs bench --viewer (three.js's SkinnedMesh), built the same way.
+THREE_LBS_JS := src/stbs/viewer/static/three-lbs.js
 
 .PHONY: demo test pytest wheel-check lint bench bench-igl bench-bbw install install-test clean
 
@@ -19,11 +21,11 @@ $(BIN)/python:
 
 # Stamps re-run the install when pyproject.toml changes. The viewer's bundle is built
 # first, so that the editable install and the wheel ship it.
-$(VENV)/.stamp-install: pyproject.toml | $(BIN)/python $(VIEWER_JS)
+$(VENV)/.stamp-install: pyproject.toml | $(BIN)/python $(VIEWER_JS) $(THREE_LBS_JS)
 	$(PIP) install -e ".[demo,weights,triangle]"
 	@touch $@
 
-$(VENV)/.stamp-test: pyproject.toml | $(BIN)/python $(VIEWER_JS)
+$(VENV)/.stamp-test: pyproject.toml | $(BIN)/python $(VIEWER_JS) $(THREE_LBS_JS)
 	$(PIP) install -e ".[test,bench,embree,triangle,tetgen,weights,demo]"
 	@touch $@
 
@@ -34,6 +36,10 @@ viewer/node_modules/.package-lock.json: viewer/package.json viewer/package-lock.
 
 $(VIEWER_JS): viewer/node_modules/.package-lock.json $(wildcard viewer/src/*.js)
 	viewer/node_modules/.bin/esbuild viewer/src/main.js --bundle --format=esm \
+	  --target=es2020 --minify --log-level=warning --outfile=$@
+
+$(THREE_LBS_JS): viewer/node_modules/.package-lock.json viewer/src/three_lbs.js
+	viewer/node_modules/.bin/esbuild viewer/src/three_lbs.js --bundle --format=esm \
 	  --target=es2020 --minify --log-level=warning --outfile=$@
 
 # Chromium for the viewer's browser tests (Playwright drives it; it never downloads a
@@ -62,8 +68,9 @@ $(VENV)/.stamp-cxx: | $(BIN)/python
 	  echo "note: no g++ or Eigen headers; the igl-dqs peer will be skipped"
 	@touch $@
 
-install: $(VENV)/.stamp-install $(VENV)/.stamp-syslibs $(VIEWER_JS)
-install-test: $(VENV)/.stamp-test $(VENV)/.stamp-syslibs $(VENV)/.stamp-chromium $(VIEWER_JS)
+install: $(VENV)/.stamp-install $(VENV)/.stamp-syslibs $(VIEWER_JS) $(THREE_LBS_JS)
+install-test: $(VENV)/.stamp-test $(VENV)/.stamp-syslibs $(VENV)/.stamp-chromium $(VIEWER_JS) \
+  $(THREE_LBS_JS)
 
 demo: install
 	$(BIN)/stbs demo --out $(DEMO_OUT)
@@ -84,7 +91,7 @@ pytest: install-test
 # Build the sdist and, from it, the wheel (python -m build: a clean, isolated build,
 # so a file the sdist or the wheel lacks shows up here), install the wheel into a
 # fresh virtual environment without extras, check that it holds every file git has
-# under src/stbs and the viewer's bundle, and run the command from a folder outside
+# under src/stbs and the viewer's bundles, and run the command from a folder outside
 # the source tree, then again with the demo extra.
 wheel-check: install-test
 	rm -rf $(WHEEL_CHECK)
@@ -101,7 +108,8 @@ wheel-check: install-test
 	  "$$venv/bin/python" -c "import stbs, sys; p = stbs.__file__; \
 	    sys.exit(0 if p.startswith('$$venv') else 'stbs imported from ' + p)"; \
 	  site=$$("$$venv/bin/python" -c "import os, stbs; print(os.path.dirname(os.path.dirname(stbs.__file__)))"); \
-	  { git -C $(CURDIR)/src ls-files stbs; echo $(patsubst src/%,%,$(VIEWER_JS)); } | sort -u > want.txt; \
+	  { git -C $(CURDIR)/src ls-files stbs; echo $(patsubst src/%,%,$(VIEWER_JS)); \
+	    echo $(patsubst src/%,%,$(THREE_LBS_JS)); } | sort -u > want.txt; \
 	  (cd "$$site" && find stbs -type f ! -path '*/__pycache__/*' | sort) > got.txt; \
 	  comm -23 want.txt got.txt > lacking.txt; \
 	  test ! -s lacking.txt || { echo "the wheel lacks:"; cat lacking.txt; exit 1; }; \
@@ -127,5 +135,5 @@ bench-bbw: install-test
 
 clean:
 	rm -rf $(VENV) build dist src/*.egg-info $(DEMO_OUT) .pytest_cache .ruff_cache \
-	  viewer/node_modules $(VIEWER_JS)
+	  viewer/node_modules $(VIEWER_JS) $(THREE_LBS_JS)
 	find . -name __pycache__ -type d -prune -exec rm -rf {} +

@@ -24,6 +24,7 @@ EXTRAS = {
     "embreex": ("embreex", "embree"),
     "cholespy": ("cholespy", "weights"),
     "igl": ("libigl", "bench"),
+    "playwright": ("playwright", "bench"),
 }
 
 

@@ -1,4 +1,4 @@
-"""``python -m stbs.bench [--weights] [options]``: the same as ``stbs bench``."""
+"""``python -m stbs.bench [--weights | --viewer] [options]``: the same as ``stbs bench``."""
 
 import sys
 
@@ -8,6 +8,8 @@ def _main() -> int:
     options = argv[:argv.index("--")] if "--" in argv else argv
     if "--weights" in options:
         from .weights import main
+    elif "--viewer" in options:
+        from .viewer import main
     else:
         from .skinning import main
     return main(argv)

@@ -1,6 +1,7 @@
-"""``stbs bench``: delegates to :mod:`stbs.bench.skinning` (skinning throughput) or, with
-``--weights``, to :mod:`stbs.bench.weights` (bounded biharmonic weights), imported only
-when the command runs."""
+"""``stbs bench``: delegates to :mod:`stbs.bench.skinning` (skinning throughput), with
+``--weights`` to :mod:`stbs.bench.weights` (bounded biharmonic weights), or with
+``--viewer`` to :mod:`stbs.bench.viewer` (the viewer's frame time in a headless
+browser), imported only when the command runs."""
 
 from __future__ import annotations
 
@@ -12,14 +13,18 @@ from .._optional import OptionalDependencyError, missing
 from ._errors import CommandError
 
 NAME = "bench"
-HELP = "throughput of the four skinning methods, or (--weights) of bounded biharmonic weights"
+HELP = ("throughput of the four skinning methods, or (--weights) of bounded biharmonic "
+        "weights, or (--viewer) the viewer's frame time")
 EXAMPLE = "stbs bench"
 DESCRIPTION = ("Time lbs, dqs, stbs-lbs and stbs-dqs per vertex on this machine, beside "
                "a NumPy and a SciPy LBS timed the same way (the options below come from "
                "stbs.bench.skinning). With --weights: time bounded biharmonic weights and a "
-               "complete rig instead (its own options: stbs bench --weights --help).")
+               "complete rig instead (its own options: stbs bench --weights --help). With "
+               "--viewer: time the viewer's page in headless Chromium beside three.js's "
+               "SkinnedMesh (stbs bench --viewer --help).")
 EPILOG = (f"examples:\n  {EXAMPLE}\n  stbs bench --sizes 100k --dtype float32 --no-peers\n"
-          "  stbs bench --weights --cases 2d-5k,3d-10k --json bbw.json")
+          "  stbs bench --weights --cases 2d-5k,3d-10k --json bbw.json\n"
+          "  stbs bench --viewer --sizes 10k,100k --json viewer.json")
 WEIGHTS_DESCRIPTION = (
     "Time stbs's bounded biharmonic weights (BBWSolver construction + solve) on built-in "
     "meshes, and a complete 20-bone rig (bone + endpoint weights, stbs.build_rig) per stage "
@@ -41,36 +46,60 @@ def _module(name: str):
                            "installation (reinstall stbs-skinning)") from None
 
 
-def _wants_weights(argv: Sequence[str]) -> bool:
+VIEWER_DESCRIPTION = (
+    "Time the viewer's page (stbs view) in headless Chromium: milliseconds per frame of "
+    "each skinning method on a synthetic tube rig with a stretched and twisted pose, "
+    "beside three.js's own SkinnedMesh (three-lbs) on the same mesh (the options below "
+    "come from stbs.bench.viewer).")
+VIEWER_EPILOG = ("examples:\n  stbs bench --viewer\n"
+                 "  stbs bench --viewer --sizes 10k,100k --frames 20 --json viewer.json\n"
+                 "  stbs bench --viewer --gpu --browser /usr/bin/chromium")
+
+
+def _wants(argv: Sequence[str], flag: str) -> bool:
     args = list(argv)
     if "--" in args:
         args = args[:args.index("--")]
-    return "--weights" in args
+    return flag in args
+
+
+def _wants_weights(argv: Sequence[str]) -> bool:
+    return _wants(argv, "--weights")
 
 
 def run_delegated(argv: Sequence[str], *, debug: bool,
                   parser_class: type[argparse.ArgumentParser]) -> int:
     """Parse ``argv`` with the benchmark module's ``add_arguments`` and call its ``run``:
-    :mod:`stbs.bench.weights` when ``--weights`` is given, else :mod:`stbs.bench` (the
-    names of :mod:`stbs.bench.skinning`).
+    :mod:`stbs.bench.weights` when ``--weights`` is given, :mod:`stbs.bench.viewer` when
+    ``--viewer`` is, else :mod:`stbs.bench` (the names of :mod:`stbs.bench.skinning`).
     A module's ``requires(args)`` (optional import names) is checked first."""
-    weights = _wants_weights(argv)
+    weights, viewer = _wants_weights(argv), _wants(argv, "--viewer")
+    if weights and viewer:
+        raise CommandError("--weights and --viewer: give one of them (two benchmarks)")
     # stbs.bench is the skinning benchmark's API (stbs.bench.skinning's names)
-    bench = _module("stbs.bench.weights" if weights else "stbs.bench")
-    epilog = EPILOG
+    bench = _module("stbs.bench.weights" if weights else
+                    "stbs.bench.viewer" if viewer else "stbs.bench")
+    epilog = VIEWER_EPILOG if viewer else EPILOG
+    description = (WEIGHTS_DESCRIPTION if weights else
+                   VIEWER_DESCRIPTION if viewer else DESCRIPTION)
     if weights:
         cases = getattr(bench, "CASES", {})
         epilog = "cases:\n" + "".join(f"  {c.name:<10} {c.about}\n" for c in cases.values())
         epilog += "\n" + WEIGHTS_EPILOG
-    p = parser_class(prog=f"stbs {NAME}",
-                     description=WEIGHTS_DESCRIPTION if weights else DESCRIPTION,
+    p = parser_class(prog=f"stbs {NAME}", description=description,
                      epilog=epilog,
                      formatter_class=argparse.RawDescriptionHelpFormatter)
     bench.add_arguments(p)
-    if not weights and not any("--weights" in a.option_strings for a in p._actions):
+    if not weights and not viewer and not any("--weights" in a.option_strings
+                                              for a in p._actions):
         p.add_argument("--weights", action="store_true",
                        help="time bounded biharmonic weights instead "
                             "(its options: stbs bench --weights --help)")
+    if not weights and not viewer and not any("--viewer" in a.option_strings
+                                              for a in p._actions):
+        p.add_argument("--viewer", action="store_true",
+                       help="time the viewer's page in headless Chromium instead "
+                            "(its options: stbs bench --viewer --help)")
     if not any("--debug" in a.option_strings for a in p._actions):
         p.add_argument("--debug", action="store_true", default=argparse.SUPPRESS,
                        help="show the full traceback instead of a one-line error")
