@@ -7,6 +7,7 @@ import { OrbitControls } from "three/examples/jsm/controls/OrbitControls.js";
 import { SkinFeedback } from "./feedback.js";
 import { packBones, posedSegments, restFrames } from "./pose.js";
 import { PoseEditor } from "./edit.js";
+import { Timeline } from "./timeline.js";
 import { MESH_FRAGMENT, MESH_VERTEX, METHODS, TEXELS_PER_BONE } from "./skin.js";
 
 const TOKEN = new URLSearchParams(location.search).get("token") || "";
@@ -106,6 +107,7 @@ class Viewer {
     this.compile();
     this.buildUI();
     this.editor = new PoseEditor(this);
+    this.timeline = new Timeline(this, apiJSON, status);
     this.frame();
   }
 
@@ -479,4 +481,18 @@ window.stbsViewer = Object.freeze({
   redo: whenReady(() => viewer.editor.redo()),
   canUndo: () => !!viewer.editor && viewer.editor.undoStack.length > 0,
   canRedo: () => !!viewer.editor && viewer.editor.redoStack.length > 0,
+  // clips (timeline.js): keys, seek, playback, clip files, GIF export
+  addKey: whenReady((time, pose) => viewer.timeline.addKey(time ?? viewer.timeline.time, pose ?? null)),
+  deleteKey: whenReady((time) => viewer.timeline.deleteKey(time ?? null)),
+  keys: () => (viewer.timeline ? viewer.timeline.keys() : []),
+  clearKeys: whenReady(() => viewer.timeline.clearKeys()),
+  setClip: whenReady((clip) => viewer.timeline.setClip(clip)),
+  getClip: () => (viewer.timeline ? viewer.timeline.clip() : null),
+  setFps: whenReady((fps) => viewer.timeline.setFps(fps)),
+  seek: whenReady((t) => viewer.timeline.seek(t)),
+  play: whenReady(() => viewer.timeline.play()),
+  pause: whenReady(() => viewer.timeline.pause()),
+  clipState: () => (viewer.timeline ? viewer.timeline.state() : null),
+  saveClip: whenReady((name, overwrite) => viewer.timeline.saveClip(name ?? null, !!overwrite)),
+  exportClip: whenReady((opts) => viewer.timeline.exportClip(opts || {})),
 });
