@@ -21,7 +21,7 @@ import pytest
 SRC = Path(__file__).resolve().parents[1] / "src" / "stbs"
 
 MATHS = {"_checks", "_optional", "geometry", "transforms", "skeleton", "pose", "clip", "motion",
-         "skinning", "weights", "meshing", "shapes"}
+         "retargeting", "skinning", "weights", "meshing", "shapes"}
 DATA = {"rig", "io"}
 FRONT = {"cli", "demo", "bench", "viewer"}
 TIER = {**{m: 0 for m in MATHS}, **{m: 1 for m in DATA}, **{m: 2 for m in FRONT}}

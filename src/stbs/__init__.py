@@ -23,6 +23,7 @@ _EXPORTS = {
     "forward_kinematics": "stbs.pose",
     "Clip": "stbs.clip",
     "Motion": "stbs.motion",
+    "retarget": "stbs.retargeting",
     "Deformer": "stbs.skinning",
     "deform": "stbs.skinning",
     "METHODS": "stbs.skinning",
@@ -47,8 +48,8 @@ _EXPORTS = {
     "outline_from_image": "stbs.meshing",
 }
 
-__all__ = ["Skeleton", "Pose", "forward_kinematics", "Clip", "Motion", "Deformer", "deform",
-           "METHODS",
+__all__ = ["Skeleton", "Pose", "forward_kinematics", "Clip", "Motion", "retarget", "Deformer",
+           "deform", "METHODS",
            "endpoint_weights", "Rig", "build_rig", "load_rig", "save_rig", "read_pose",
            "write_pose", "read_clip", "write_clip", "read_bvh", "bone_heat",
            "bone_weights", "BBWSolver", "bbw", "boundary_conditions",
@@ -82,6 +83,7 @@ if TYPE_CHECKING:  # pragma: no cover - for type checkers and IDEs
     from .meshing import outline_from_image, tetrahedralize, triangulate_2d
     from .motion import Motion
     from .pose import Pose, forward_kinematics
+    from .retargeting import retarget
     from .rig import Rig, build_rig
     from .skeleton import Skeleton
     from .skinning import METHODS, Deformer, deform

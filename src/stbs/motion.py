@@ -187,6 +187,60 @@ class Motion:
             X[k] = self.offsets[k] + (X[p] if p >= 0 else 0.0)
         return X
 
+    def skeleton(self, *, tol: float = 1e-9):
+        """A :class:`stbs.Skeleton` of this hierarchy's rest pose, and what drives its bones.
+
+        Rule: every joint ``k`` whose offset is longer than ``tol`` gives a bone from its
+        parent's position to its own, turned by the parent's rotation (the parent's
+        frame holds the offset). Joints at the same place (a zero offset, as the CMU
+        files' ``LHipJoint``) share one skeleton joint, so zero-length bones never
+        arise. A bone is named after the joint that turns it; when that joint turns
+        several bones, the first keeps the name and the others are named
+        ``"PARENT>CHILD"``.
+
+        Returns
+        -------
+        sk : Skeleton
+            Joints at :meth:`rest_positions` (merged where they coincide).
+        drive : (b,) int
+            For each bone, the motion joint whose rotation turns it.
+        end : (b,) int
+            For each bone, the motion joint at its end.
+
+        Raises
+        ------
+        ValueError
+            When every offset is zero (no bone at all).
+        """
+        from .skeleton import Skeleton
+
+        X = self.rest_positions()
+        joint_of = np.empty(self.n_joints, dtype=np.int64)      # motion joint -> skeleton joint
+        C: list[np.ndarray] = []
+        for k, p in enumerate(self.parents):
+            if p >= 0 and np.linalg.norm(self.offsets[k]) <= tol:
+                joint_of[k] = joint_of[p]
+            else:
+                joint_of[k] = len(C)
+                C.append(X[k])
+        BE, names, drive, end = [], [], [], []
+        taken: set[str] = set()
+        for k, p in enumerate(self.parents):
+            if p < 0 or np.linalg.norm(self.offsets[k]) <= tol:
+                continue
+            name = self.names[p]
+            if name in taken:
+                name = f"{name}>{self.names[k]}"
+            taken.add(name)
+            BE.append([joint_of[p], joint_of[k]])
+            names.append(name)
+            drive.append(p)
+            end.append(k)
+        if not BE:
+            raise ValueError("the motion has no bone: every joint's offset is zero")
+        sk = Skeleton(np.array(C), np.array(BE), names=names)
+        return sk, np.array(drive, dtype=np.int64), np.array(end, dtype=np.int64)
+
     def __repr__(self) -> str:
         return (f"Motion({self.n_joints - int(self.end_site.sum())} joints + "
                 f"{int(self.end_site.sum())} end sites, {self.n_frames} frames at "

@@ -230,20 +230,21 @@ def forward_kinematics(sk: Skeleton, rotations=None, stretch=None, twist=None,
     A, vec = sk.A, sk.B - sk.A
     R = np.empty((b, d, d))
     origins = np.empty((b, d))
+    # Twists do not depend on the rotations: theta_a is the root joint's twist (roots
+    # only), theta_b adds the end joint's; all end twists K_i(1) in one batch.
     theta = np.zeros((b, 2))
+    roots = sk.parents < 0
+    theta[roots, 0] = tau[sk.BE[roots, 0]]
+    theta[:, 1] = theta[:, 0] + tau[sk.BE[:, 1]]
+    K = tf.axis_angle_to_matrix(sk.axes, theta[:, 1]) if d == 3 else None
     G = np.empty((b, d, d))  # full end rotation R_i K_i(1), inherited by children
     for i in sk.order:
         p = sk.parents[i]
         if p < 0:
             R[i] = L[i]
             origins[i] = A[i] + shift
-            theta[i, 0] = tau[sk.BE[i, 0]]
         else:
             R[i] = G[p] @ L[i]
             origins[i] = origins[p] + sigma[p] * (R[p] @ vec[p])
-        theta[i, 1] = theta[i, 0] + tau[sk.BE[i, 1]]
-        if d == 3:
-            G[i] = R[i] @ tf.axis_angle_to_matrix(sk.axes[i], theta[i, 1])
-        else:
-            G[i] = R[i]
+        G[i] = R[i] @ K[i] if d == 3 else R[i]
     return Pose(sk, rotations=R, origins=origins, stretch=sigma, twist=theta)
