@@ -1,10 +1,18 @@
-// Pose editing on the page: dragging joints (the joints form of a pose), per-bone
-// twist and stretch sliders (the forward-kinematics form), undo and redo.
+// Pose editing on the page: dragging joints (stretching the bones at the joint, or
+// inverse kinematics keeping bone lengths) and the rotation gizmo's rings (ik.js,
+// gizmo.js), per-bone twist and stretch sliders (the forward-kinematics form), undo
+// and redo.
 
 import * as THREE from "three";
+import { Bones } from "./ik.js";
 
 const PICK_PX = 14;     // a joint is picked within this many CSS pixels of the pointer
-const DEG = 180 / Math.PI;
+const DRAG_MODES = ["stretch", "ik"];
+
+function copyWorld(w) {
+  return { R: w.R.map((M) => M.map((r) => r.slice())), A: w.A.map((a) => a.slice()),
+           S: w.S.slice(), T: w.T.map((t) => t.slice()) };
+}
 
 export class PoseEditor {
   constructor(viewer) {
@@ -12,6 +20,8 @@ export class PoseEditor {
     this.undoStack = [];
     this.redoStack = [];
     this.drag = null;
+    this.mode = "stretch";
+    this.bones = new Bones(viewer);
     this.sliders = { twist: {}, stretch: {} };    // bone name -> end twist (deg), stretch
     this.names = [];
     const names = viewer.summary.names || [];
@@ -70,10 +80,22 @@ export class PoseEditor {
     if (r) r.disabled = !this.redoStack.length;
   }
 
-  // ------------------------------------------------------------------ dragging joints
+  // ------------------------------------------------------------------ dragging
+  /** "stretch" (the joint moves alone, its bones stretch) or "ik" (bone lengths kept). */
+  setDragMode(mode) {
+    if (!DRAG_MODES.includes(mode)) {
+      throw new Error(`drag mode must be one of ${DRAG_MODES.join(", ")}, got ${JSON.stringify(mode)}`);
+    }
+    this.mode = mode;
+    const sel = document.getElementById("drag-mode");
+    if (sel) sel.value = mode;
+    return mode;
+  }
+
+  /** The pointer on the page, and in the viewport under it (two when side by side). */
   pointer(e) {
-    const rect = this.v.renderer.domElement.getBoundingClientRect();
-    return { x: e.clientX, y: e.clientY,
+    const rect = this.v.viewRectAt(e.clientX, e.clientY);
+    return { x: e.clientX, y: e.clientY, rect,
              ndc: new THREE.Vector2(2 * (e.clientX - rect.left) / rect.width - 1,
                                     1 - 2 * (e.clientY - rect.top) / rect.height) };
   }
@@ -86,23 +108,45 @@ export class PoseEditor {
     return ray.ray.intersectPlane(this.drag.plane, hit) ? hit : null;
   }
 
-  onDown(e) {
-    if (e.button !== 0 || this.drag) return;
-    const p = this.pointer(e), screen = this.v.jointScreenPositions();
+  /** The joint within PICK_PX of the pointer (the nearest), or -1. */
+  jointAt(p) {
+    const J = this.v.posedJoints();
     let best = -1, bestD = PICK_PX;
-    screen.forEach(([x, y], k) => {
+    for (let k = 0; k < J.length / 3; k++) {
+      const [x, y] = this.v.toScreen(J[3 * k], J[3 * k + 1], J[3 * k + 2], p.rect);
       const d = Math.hypot(x - p.x, y - p.y);
       if (d <= bestD) { best = k; bestD = d; }
-    });
-    if (best < 0) return;                 // not on a joint: the orbit controls have it
+    }
+    return best;
+  }
+
+  /** Whether weight painting is on (it takes the pointer; joint drags and the gizmo wait). */
+  painting() {
+    const w = this.v.weights;
+    return !!(w && w.settings && w.settings.mode && w.settings.mode !== "off");
+  }
+
+  onDown(e) {
+    if (e.button !== 0 || this.drag) return;
+    if (this.painting()) return;                          // painting has the pointer
+    const p = this.pointer(e), gizmo = this.v.gizmo;
+    const ring = gizmo ? gizmo.pick(p) : null;
+    const best = ring ? -1 : this.jointAt(p);
+    if (!ring && best < 0) return;        // not on a ring or a joint: the orbit controls have it
     e.stopImmediatePropagation();
     e.preventDefault();
-    const J = this.v.posedJoints();
-    const start = new THREE.Vector3(J[3 * best], J[3 * best + 1], J[3 * best + 2]);
-    const normal = this.v.camera.getWorldDirection(new THREE.Vector3());
-    this.drag = { joint: best, joints: J, start, id: e.pointerId, moved: false,
-                  plane: new THREE.Plane().setFromNormalAndCoplanarPoint(normal, start) };
-    this.drag.grab = this.onPlane(p.ndc) || start.clone();
+    const world = this.bones.world();
+    if (ring) {
+      this.drag = { kind: "gizmo", turn: gizmo.begin(ring, p), bone: gizmo.bone, world,
+                    id: e.pointerId, moved: false };
+    } else {
+      const J = this.v.posedJoints();
+      const start = new THREE.Vector3(J[3 * best], J[3 * best + 1], J[3 * best + 2]);
+      const normal = this.v.camera.getWorldDirection(new THREE.Vector3());
+      this.drag = { kind: this.mode, joint: best, world, start, id: e.pointerId, moved: false,
+                    plane: new THREE.Plane().setFromNormalAndCoplanarPoint(normal, start) };
+      this.drag.grab = this.onPlane(p.ndc) || start.clone();
+    }
     this.v.controls.enabled = false;
     try { this.v.renderer.domElement.setPointerCapture(e.pointerId); } catch (_) { /* synthetic */ }
   }
@@ -110,37 +154,36 @@ export class PoseEditor {
   onMove(e) {
     if (!this.drag || e.pointerId !== this.drag.id) return;
     e.stopImmediatePropagation();
-    const hit = this.onPlane(this.pointer(e).ndc);
-    if (!hit) return;
-    if (!this.drag.moved) { this.remember(); this.drag.moved = true; }
-    const at = this.drag.start.clone().add(hit.sub(this.drag.grab));
-    this.v.send(this.jointsPose(this.drag.joints, this.drag.joint, at));
+    const d = this.drag, p = this.pointer(e), w = copyWorld(d.world);
+    let edited;
+    if (d.kind === "gizmo") {
+      const angle = this.v.gizmo.turn(d.turn, p);
+      if (angle === 0 && !d.moved) return;
+      edited = this.bones.rotateBone(w, d.bone, d.turn.axis.toArray(), angle);
+    } else {
+      const hit = this.onPlane(p.ndc);
+      if (!hit) return;
+      const at = d.start.clone().add(hit.sub(d.grab)).toArray();
+      if (this.v.dim === 2) at[2] = 0;
+      edited = d.kind === "ik" ? this.bones.ikJoint(w, d.joint, at) : this.bones.stretchJoint(w, d.joint, at);
+    }
+    if (!edited) return;
+    if (!d.moved) { this.remember(); d.moved = true; }
+    this.v.send(this.bones.poseObject(edited).pose);
   }
 
   onUp(e) {
     if (!this.drag || e.pointerId !== this.drag.id) return;
     e.stopImmediatePropagation();
+    const d = this.drag;
     this.drag = null;
     this.v.controls.enabled = true;
     try { this.v.renderer.domElement.releasePointerCapture(e.pointerId); } catch (_) { /* synthetic */ }
-  }
-
-  /** The joints-form pose: the posed joints with joint k at `at`, the current twists. */
-  jointsPose(J, k, at) {
-    const dim = this.v.dim, joints = [];
-    for (let j = 0; j < J.length / 3; j++) {
-      const q = j === k ? [at.x, at.y, at.z] : [J[3 * j], J[3 * j + 1], J[3 * j + 2]];
-      joints.push(q.slice(0, dim));
+    // a click on a joint with the gizmo on: the gizmo goes to the bone starting there
+    if (!d.moved && d.kind !== "gizmo" && this.v.gizmo && this.v.gizmo.bone !== null) {
+      const bones = this.bones.startingAt(d.joint);
+      if (bones.length) this.v.gizmo.set(bones[0]);
     }
-    const pose = { joints };
-    if (dim === 3) {
-      const tw = this.v.poseArrays.twist, twist = {};
-      for (let i = 0; i < tw.length; i++) {
-        if (tw[i][0] !== 0 || tw[i][1] !== 0) twist[String(i)] = [tw[i][0] * DEG, tw[i][1] * DEG];
-      }
-      if (Object.keys(twist).length) pose.twist = twist;
-    }
-    return pose;
   }
 
   // ------------------------------------------------------------------ the panel
@@ -165,6 +208,8 @@ export class PoseEditor {
     document.getElementById("undo")?.addEventListener("click", () => this.undo());
     document.getElementById("redo")?.addEventListener("click", () => this.redo());
     document.getElementById("frame")?.addEventListener("click", () => this.v.frame());
+    const mode = document.getElementById("drag-mode");
+    mode?.addEventListener("change", () => this.setDragMode(mode.value));
     this.showBone();
     this.updateButtons();
   }
