@@ -489,6 +489,7 @@ window.stbsViewer = Object.freeze({
   setClip: whenReady((clip) => viewer.timeline.setClip(clip)),
   getClip: () => (viewer.timeline ? viewer.timeline.clip() : null),
   setFps: whenReady((fps) => viewer.timeline.setFps(fps)),
+  setInterpolation: whenReady((name) => viewer.timeline.setInterpolation(name)),
   seek: whenReady((t) => viewer.timeline.seek(t)),
   play: whenReady(() => viewer.timeline.play()),
   pause: whenReady(() => viewer.timeline.pause()),

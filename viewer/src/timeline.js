@@ -9,6 +9,7 @@
 import { packBones, posedSegments } from "./pose.js";
 
 const DEFAULT_FPS = 30;
+const INTERPOLATIONS = ["linear", "step"];
 const MAX_EXPORT_WIDTH = 480;    // px: GIF frames are scaled down to at most this width
 const MAX_EXPORT_FRAMES = 600;   // what POST /api/export takes
 
@@ -126,6 +127,15 @@ export class Timeline {
     this.fps = fps;
     this.changed();
     return fps;
+  }
+
+  setInterpolation(name) {
+    if (!INTERPOLATIONS.includes(name)) {
+      throw new Error(`interpolation must be one of ${INTERPOLATIONS.join(", ")}, got ${JSON.stringify(name)}`);
+    }
+    this.interpolation = name;
+    this.changed();
+    return name;
   }
 
   post(body) {
@@ -317,6 +327,10 @@ export class Timeline {
     fps?.addEventListener("change", () => {
       try { this.setFps(Number(fps.value)); } catch (err) { report("fps")(err); fps.value = String(this.fps); }
     });
+    const interp = this.el("tl-interp");
+    interp?.addEventListener("change", () => {
+      try { this.setInterpolation(interp.value); } catch (err) { report("interpolation")(err); }
+    });
     const loop = this.el("tl-loop");
     loop?.addEventListener("change", () => { this.loop = loop.checked; });
     const saving = !!(this.v.summary.save && this.v.summary.save.pose);
@@ -383,6 +397,8 @@ export class Timeline {
     if (del) del.disabled = !this.list.length;
     const fps = this.el("tl-fps");
     if (fps && document.activeElement !== fps) fps.value = String(this.fps);
+    const interp = this.el("tl-interp");
+    if (interp) interp.value = this.interpolation;
     const marks = this.el("tl-marks");
     if (marks) {
       marks.replaceChildren(...this.list.map((k) => {
