@@ -47,9 +47,11 @@ export class SkinFeedback {
     const data = { position: attrs.position, normal: attrs.normal, stbsIndex: attrs.index,
                    stbsWeight: attrs.weight, stbsEnd: attrs.end };
     this.buffers = [];
+    this.bufferOf = {};
     for (const [name, size] of Object.entries(layout)) {
       const loc = gl.getAttribLocation(prog, name);
       const buf = gl.createBuffer();
+      this.bufferOf[name] = buf;
       gl.bindBuffer(gl.ARRAY_BUFFER, buf);
       gl.bufferData(gl.ARRAY_BUFFER, data[name], gl.STATIC_DRAW);
       this.buffers.push(buf);
@@ -73,6 +75,15 @@ export class SkinFeedback {
     gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_WRAP_S, gl.CLAMP_TO_EDGE);
     gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_WRAP_T, gl.CLAMP_TO_EDGE);
     gl.bindTexture(gl.TEXTURE_2D, null);
+  }
+
+  /** Replace one input attribute's data (stbsIndex, stbsWeight, stbsEnd: n x 4 floats). */
+  setAttribute(name, data) {
+    const gl = this.gl, buf = this.bufferOf[name];
+    if (!buf) throw new Error(`stbs viewer: no feedback attribute ${name}`);
+    gl.bindBuffer(gl.ARRAY_BUFFER, buf);
+    gl.bufferSubData(gl.ARRAY_BUFFER, 0, data);
+    gl.bindBuffer(gl.ARRAY_BUFFER, null);
   }
 
   /** Skin with the pose texture data and method; returns [positions, normals] (n x 3 each). */

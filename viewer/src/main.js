@@ -7,6 +7,10 @@ import { OrbitControls } from "three/examples/jsm/controls/OrbitControls.js";
 import { SkinFeedback } from "./feedback.js";
 import { packBones, posedSegments, restFrames } from "./pose.js";
 import { PoseEditor } from "./edit.js";
+import { WeightEditor } from "./paint.js";
+import { Compare } from "./compare.js";
+import { Gizmo } from "./gizmo.js";
+import { PoseFiles } from "./posefiles.js";
 import { Timeline } from "./timeline.js";
 import { MESH_FRAGMENT, MESH_VERTEX, METHODS, TEXELS_PER_BONE } from "./skin.js";
 
@@ -89,7 +93,7 @@ class Viewer {
     const info = await apiJSON("/api/rig");
     this.summary = info;
     this.dim = info.dim;
-    const want = ["V", "F", "C", "BE", "I4", "W4", "E4"];
+    const want = ["V", "F", "C", "BE", "I4", "W4", "E4", "W", "E"];
     if (info.dim === 2 && info.arrays.UV && info.arrays.texture) want.push("UV", "texture");
     const arrays = {};
     await Promise.all(want.map(async (k) => {
@@ -107,6 +111,10 @@ class Viewer {
     this.compile();
     this.buildUI();
     this.editor = new PoseEditor(this);
+    this.weights = new WeightEditor(this, api);
+    this.compare = new Compare(this);
+    this.gizmo = new Gizmo(this, this.editor.bones);
+    this.poseFiles = new PoseFiles(this, apiJSON, status);
     this.timeline = new Timeline(this, apiJSON, status);
     this.frame();
   }
@@ -158,6 +166,7 @@ class Viewer {
         uBoneTint: { value: dim === 2 ? 0.45 : 0.2 },
         uFlat: { value: dim === 2 ? 1 : 0 },
         uTextured: { value: 0 },
+        uColorMode: { value: 0 },
         uPicture: { value: null },
       },
     });
@@ -229,8 +238,9 @@ class Viewer {
   }
 
   resize() {
-    const w = window.innerWidth, h = Math.max(window.innerHeight, 1), aspect = w / h;
+    const w = window.innerWidth, h = Math.max(window.innerHeight, 1);
     this.renderer.setSize(w, h, false);
+    const view = this.viewRect(), aspect = Math.max(view.width, 1) / Math.max(view.height, 1);
     if (this.camera.isOrthographicCamera) {
       const half = 0.5 * (this.camera.top - this.camera.bottom);
       this.camera.left = -half * aspect; this.camera.right = half * aspect;
@@ -268,7 +278,21 @@ class Viewer {
   }
 
   render() {
-    this.renderer.render(this.scene, this.camera);
+    if (this.gizmo) this.gizmo.update();
+    if (this.compare && this.compare.active) this.compare.render();
+    else this.renderer.render(this.scene, this.camera);
+  }
+
+  /** The (left, with side by side) viewport on the page, CSS pixels {left, top, width, height}. */
+  viewRect() {
+    if (this.compare) return this.compare.rect(0);
+    const r = this.renderer.domElement.getBoundingClientRect();
+    return { left: r.left, top: r.top, width: r.width, height: r.height };
+  }
+
+  /** The viewport under a page point. */
+  viewRectAt(x, y) {
+    return this.compare ? this.compare.rectAt(x, y) : this.viewRect();
   }
 
   buildUI() {
@@ -364,8 +388,7 @@ class Viewer {
   }
 
   /** A world point's position on the page, CSS pixels [x, y]. */
-  toScreen(x, y, z) {
-    const rect = this.renderer.domElement.getBoundingClientRect();
+  toScreen(x, y, z, rect = this.viewRect()) {
     const v = new THREE.Vector3(x, y, z).project(this.camera);
     return [rect.left + 0.5 * (v.x + 1) * rect.width, rect.top + 0.5 * (1 - v.y) * rect.height];
   }
@@ -377,7 +400,7 @@ class Viewer {
   }
 
   cameraInfo() {
-    const cam = this.camera, rect = this.renderer.domElement.getBoundingClientRect();
+    const cam = this.camera, rect = this.viewRect();
     cam.updateMatrixWorld();
     return { view: Array.from(cam.matrixWorldInverse.elements),
              projection: Array.from(cam.projectionMatrix.elements),
@@ -393,7 +416,7 @@ class Viewer {
     const center = box.getCenter(new THREE.Vector3());
     const size = box.getSize(new THREE.Vector3());
     const r = Math.max(0.5 * size.length(), 1e-6);
-    const rect = this.renderer.domElement.getBoundingClientRect();
+    const rect = this.viewRect();
     const aspect = Math.max(rect.width, 1) / Math.max(rect.height, 1);
     const cam = this.camera;
     if (cam.isOrthographicCamera) {
@@ -481,6 +504,33 @@ window.stbsViewer = Object.freeze({
   redo: whenReady(() => viewer.editor.redo()),
   canUndo: () => !!viewer.editor && viewer.editor.undoStack.length > 0,
   canRedo: () => !!viewer.editor && viewer.editor.redoStack.length > 0,
+  // posing tools: drag modes, the rotation gizmo, side by side, pose files
+  setDragMode: whenReady((mode) => viewer.editor.setDragMode(mode)),
+  dragMode: () => (viewer.editor ? viewer.editor.mode : "stretch"),
+  setGizmo: whenReady((bone) => viewer.gizmo.set(bone)),
+  gizmo: whenReady(() => viewer.gizmo.info()),
+  setCompare: whenReady((name) => viewer.compare.set(name)),
+  compare: () => (viewer.compare ? viewer.compare.method() : null),
+  savePose: whenReady((name, overwrite) => viewer.poseFiles.save(name ?? null, !!overwrite)),
+  poseText: whenReady(() => viewer.poseFiles.text()),
+  loadPoseText: whenReady((text) => viewer.poseFiles.loadText(text)),
+  // weights: colour modes, painting, endpoint recompute, the endpoint curve
+  setColorMode: whenReady((name) => viewer.weights.setColorMode(name)),
+  colorMode: () => (viewer.weights ? viewer.weights.colorMode() : "shaded"),
+  setPaint: whenReady((opts) => viewer.weights.setPaint(opts)),
+  paint: whenReady(() => viewer.weights.paintSettings()),
+  lastStroke: whenReady(() => viewer.weights.lastStroke),
+  paintUndo: whenReady(() => viewer.weights.undo()),
+  paintRedo: whenReady(() => viewer.weights.redo()),
+  canPaintUndo: () => !!viewer.weights && viewer.weights.undoStack.length > 0,
+  canPaintRedo: () => !!viewer.weights && viewer.weights.redoStack.length > 0,
+  weights: whenReady(() => viewer.weights.weights()),
+  saveRig: whenReady(() => viewer.weights.saveRig()),
+  recomputeEndpoint: whenReady((bone, method, options) => viewer.weights.recompute(bone, method, options)),
+  setSpline: whenReady((bone, points) => viewer.weights.setSpline(bone, points)),
+  spline: whenReady((bone) => viewer.weights.splinePointsOf(viewer.weights.boneIndex(bone))),
+  splineValues: whenReady((bone, xs) => viewer.weights.splineValues(bone, xs)),
+  applySpline: whenReady((bone) => viewer.weights.applySpline(bone)),
   // clips (timeline.js): keys, seek, playback, clip files, GIF export
   addKey: whenReady((time, pose) => viewer.timeline.addKey(time ?? viewer.timeline.time, pose ?? null)),
   deleteKey: whenReady((time) => viewer.timeline.deleteKey(time ?? null)),

@@ -157,18 +157,33 @@ export const MESH_VERTEX = SKIN_GLSL + /* glsl */ `
 in vec4 stbsIndex;
 in vec4 stbsWeight;
 in vec4 stbsEnd;
+in vec2 stbsSel;            // the selected bone's (W, f(E)) at this vertex (paint.js)
+uniform int uColorMode;     // 0 shaded, 1 bones, 2 endpoint (paint.js COLOR_MODES)
 out vec3 vNormal;
 out vec3 vView;
 out vec3 vTint;
 out vec2 vUv;
+out float vColorMode;
 vec3 boneHue(float i) {
   return 0.5 + 0.5 * cos(6.28318 * (fract(i * 0.618034) + vec3(0.0, 0.33, 0.67)));
+}
+// endpoint heat map: 0 blue, 0.25 cyan, 0.5 green, 0.75 yellow, 1 red
+vec3 stbsHeat(float e) {
+  float t = clamp(e, 0.0, 1.0) * 4.0;
+  vec3 c0 = vec3(0.10, 0.15, 0.85), c1 = vec3(0.0, 0.75, 0.95), c2 = vec3(0.15, 0.85, 0.25);
+  vec3 c3 = vec3(1.0, 0.85, 0.05), c4 = vec3(0.90, 0.10, 0.05);
+  if (t < 1.0) return mix(c0, c1, t);
+  if (t < 2.0) return mix(c1, c2, t - 1.0);
+  if (t < 3.0) return mix(c2, c3, t - 2.0);
+  return mix(c3, c4, t - 3.0);
 }
 void main() {
   vec3 P, N;
   stbsSkin(position, normal, stbsIndex, stbsWeight, stbsEnd, P, N);
   vTint = vec3(0.0);
   for (int k = 0; k < 4; k++) vTint += stbsWeight[k] * boneHue(stbsIndex[k]);
+  if (uColorMode == 2) vTint = stbsSel.x > 0.0 ? stbsHeat(stbsSel.y) : vec3(0.5);
+  vColorMode = float(uColorMode);
   vUv = uv;
   vec4 mv = modelViewMatrix * vec4(P, 1.0);
   vView = -mv.xyz;
@@ -188,10 +203,12 @@ in vec3 vNormal;
 in vec3 vView;
 in vec3 vTint;
 in vec2 vUv;
+in float vColorMode;
 out highp vec4 fragColor;
 void main() {
-  vec3 base = mix(uColor, vTint, uBoneTint);
-  if (uTextured > 0.5) {      // a 2D picture (stbs view --example picture): its own colours
+  // shaded: the skin colour tinted by the bones; bones, endpoint: the tint alone
+  vec3 base = vColorMode < 0.5 ? mix(uColor, vTint, uBoneTint) : vTint;
+  if (uTextured > 0.5 && vColorMode < 0.5) {      // a 2D picture (stbs view --example picture): its own colours
     vec4 t = texture(uPicture, vUv);
     if (t.a < 0.5) discard;
     fragColor = vec4(t.rgb, 1.0);
