@@ -24,7 +24,8 @@ image, is traced and meshed with the defaults of 'stbs rig'), or a built-in exam
 
 Every request other than the page and its assets needs the token; a request for
 another host name than 127.0.0.1:PORT or localhost:PORT is refused. The page saves
-poses as JSON files into the rig's folder (the folder of --save-as when given) and the
+poses and clips (keyed poses, played on its timeline) as JSON files and clips as
+animated GIFs into the rig's folder (the folder of --save-as when given) and the
 rig to --save-as, or beside the input: RIG.npz is saved as RIG-edited.npz (never over
 the input unless --save-as names it), MESH as MESH.npz; for an --example only with
 --save-as. Files are written to a temporary file and renamed.
