@@ -152,7 +152,9 @@ def test_save_clip_writes_what_read_clip_loads(tl):
 def test_export_writes_a_gif_of_every_sampled_frame(tl):
     from PIL import Image
 
+    before = tl.js("stbsViewer.camera()")
     out = tl.js("stbsViewer.exportClip({name: 'walk.gif', format: 'gif', width: 160})")
+    assert tl.js("stbsViewer.camera()") == before        # the user's view is given back
     n = len(_clip(tl).sample_times())
     assert n == 11                              # 0 .. 1.25 s at 8 fps
     path = tl.srv.pose_folder / "walk.gif"
@@ -167,6 +169,16 @@ def test_export_writes_a_gif_of_every_sampled_frame(tl):
     diffs = [np.abs(frames[k + 1] - frames[k]).max() for k in range(n - 1)]
     assert min(diffs) > 0, diffs                # every frame differs from the one before
     assert np.abs(frames[0] - frames[n // 2]).max() > 60
+    # the whole clip is framed: the mesh never touches the picture's border, which stays
+    # the page's background colour (0x20232a), and all frames together span a good part
+    # of the picture (the bounding sphere of the clip fits the view)
+    bg = np.array([0x20, 0x23, 0x2A])
+    for f in frames:
+        border = np.concatenate([f[0], f[-1], f[:, 0], f[:, -1]])
+        assert np.abs(border - bg).max() <= 12
+    ys, xs = np.nonzero(np.any([np.abs(f - bg).max(axis=2) > 30 for f in frames], axis=0))
+    span = max((xs.max() - xs.min()) / 160, (ys.max() - ys.min()) / 120)
+    assert span > 0.5, span
     assert tl.errors == []
 
 

@@ -409,10 +409,10 @@ class Viewer {
   }
 
   /** Frame the posed mesh (its skinned positions and the posed joints) in the view. */
-  frame() {
+  frame(more = []) {    // more: further point arrays (x, y, z, ...) to keep in view
     const U = this.skinned()[0], J = this.posedJoints();
     const box = new THREE.Box3(), p = new THREE.Vector3();
-    for (const A of [U, J]) for (let i = 0; i < A.length; i += 3) box.expandByPoint(p.set(A[i], A[i + 1], A[i + 2]));
+    for (const A of [U, J, ...more]) for (let i = 0; i < A.length; i += 3) box.expandByPoint(p.set(A[i], A[i + 1], A[i + 2]));
     const center = box.getCenter(new THREE.Vector3());
     const size = box.getSize(new THREE.Vector3());
     const r = Math.max(0.5 * size.length(), 1e-6);

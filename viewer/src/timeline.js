@@ -269,11 +269,12 @@ export class Timeline {
 
   /**
    * Draw every sampled frame, scaled to at most `width` px wide, and send them to
-   * POST /api/export, which writes an animated GIF into the rig's folder.
+   * POST /api/export, which writes an animated GIF into the rig's folder. With `frame`
+   * (default) the camera frames the whole clip while drawing, then goes back.
    * Resolves to {path, name, frames, width, height, fps}.
    */
   async exportClip({ name = null, format = "gif", width = MAX_EXPORT_WIDTH, loop = this.loop,
-                     overwrite = false } = {}) {
+                     overwrite = false, frame = true } = {}) {
     if (format !== "gif") throw new Error(`format must be "gif", got ${JSON.stringify(format)}`);
     this.needKeys("export");
     this.stop();
@@ -289,15 +290,30 @@ export class Timeline {
     out.width = w; out.height = h;
     const ctx = out.getContext("2d");
     const frames = [];
+    const v = this.v, saved = v.camera.clone(), target = v.controls.target.clone();
     try {
-      for (const frame of reply.frames) {
-        this.draw(frame);
+      if (frame) {                  // frame the whole clip: every frame's mesh and joints
+        const points = [];
+        for (const f of reply.frames) {
+          this.draw(f);
+          points.push(v.skinned()[0].slice(), v.skeletonLines.geometry.attributes.position.array.slice());
+        }
+        v.frame(points);
+      }
+      for (const f of reply.frames) {
+        this.draw(f);
         ctx.drawImage(src, 0, 0, w, h);
         frames.push(out.toDataURL("image/png"));
       }
     } finally {
-      await this.v.fetchPose();     // back to the server's current pose
-      this.v.render();
+      if (frame) {                  // give the user's view back
+        v.camera.copy(saved);
+        v.camera.updateProjectionMatrix();
+        v.controls.target.copy(target);
+        v.controls.update();
+      }
+      await v.fetchPose();          // back to the server's current pose
+      v.render();
     }
     const body = { frames, fps: reply.fps, format, loop };
     if (name !== null && name !== undefined) body.name = name;
