@@ -198,6 +198,16 @@ def test_the_gizmo_turns_a_bone_and_its_children_in_2d(plate):
     name = sk.names[7]
     assert list(after["rotate"]) == [name] and "joints" not in after, after["rotate"]
     assert abs(after["rotate"][name]["angle"] - got) < 1e-3
+    # the stretch slider then keeps the rotation; undo takes back one step at a time
+    assert plate.js("document.querySelector('#bone').value") == "7"
+    plate.js("""() => { const el = document.querySelector('#stretch'); el.value = '1.5';
+                el.dispatchEvent(new Event('input', {bubbles: true}));
+                el.dispatchEvent(new Event('change', {bubbles: true})); }""")
+    plate.js("stbsViewer.idle()")
+    slid = plate.js("stbsViewer.getPose()")
+    assert slid["rotate"] == after["rotate"] and slid["stretch"] == {name: 1.5}
+    plate.js("stbsViewer.undo()")
+    assert plate.js("stbsViewer.getPose()") == after
     plate.js("stbsViewer.undo()")
     assert plate.js("stbsViewer.getPose()") == before
     plate.js("stbsViewer.setGizmo(null)")

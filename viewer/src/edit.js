@@ -8,6 +8,7 @@ import { Bones } from "./ik.js";
 
 const PICK_PX = 14;     // a joint is picked within this many CSS pixels of the pointer
 const DRAG_MODES = ["stretch", "ik"];
+const DEG = 180 / Math.PI;
 
 function copyWorld(w) {
   return { R: w.R.map((M) => M.map((r) => r.slice())), A: w.A.map((a) => a.slice()),
@@ -58,6 +59,7 @@ export class PoseEditor {
       const pose = from.pop();
       to.push(this.v.lastSent);
       await this.v.send(pose);
+      this.showBone();
       this.updateButtons();
       return this.v.getPose();
     });
@@ -179,6 +181,7 @@ export class PoseEditor {
     this.drag = null;
     this.v.controls.enabled = true;
     try { this.v.renderer.domElement.releasePointerCapture(e.pointerId); } catch (_) { /* synthetic */ }
+    if (d.moved) this.v.idle().then(() => this.showBone());
     // a click on a joint with the gizmo on: the gizmo goes to the bone starting there
     if (!d.moved && d.kind !== "gizmo" && this.v.gizmo && this.v.gizmo.bone !== null) {
       const bones = this.bones.startingAt(d.joint);
@@ -214,9 +217,10 @@ export class PoseEditor {
     this.updateButtons();
   }
 
+  /** The sliders show the selected bone's stretch and end twist in the current pose. */
   showBone() {
-    const name = this.names[Number(document.getElementById("bone").value) || 0];
-    const t = this.sliders.twist[name] || 0, s = this.sliders.stretch[name] || 1;
+    const i = Number(document.getElementById("bone").value) || 0, P = this.v.poseArrays;
+    const s = P.stretch[i], t = this.v.dim === 3 ? Math.round(P.twist[i][1] * DEG * 1e6) / 1e6 : 0;
     document.getElementById("twist").value = String(t);
     document.getElementById("stretch").value = String(s);
     this.showValues();
@@ -238,19 +242,40 @@ export class PoseEditor {
     return pose;
   }
 
+  /**
+   * A slider move: the current pose in the forward-kinematics form with the selected
+   * bone's stretch and end twist set (rotations from the gizmo or drags kept); for a
+   * pose that has no such form, the sliders' own pose.
+   */
   onSlider() {
     const name = this.names[Number(document.getElementById("bone").value) || 0];
-    this.sliders.twist[name] = Number(document.getElementById("twist").value);
-    this.sliders.stretch[name] = Number(document.getElementById("stretch").value);
+    const t = Number(document.getElementById("twist").value);
+    const s = Number(document.getElementById("stretch").value);
+    this.sliders.twist[name] = t;
+    this.sliders.stretch[name] = s;
     this.showValues();
-    if (!this.sliding) { this.remember(); this.sliding = true; }
-    return this.v.send(this.sliderPose());
+    if (!this.sliding) {
+      this.remember();
+      this.sliding = true;
+      this.slideBase = this.bones.fkObject(this.bones.world());
+    }
+    if (!this.slideBase) return this.v.send(this.sliderPose());
+    const pose = JSON.parse(JSON.stringify(this.slideBase));
+    pose.stretch = Object.assign({}, pose.stretch, { [name]: s });
+    if (s === 1) delete pose.stretch[name];
+    if (this.v.dim === 3) {
+      const start = pose.twist && pose.twist[name] ? pose.twist[name][0] : 0;
+      pose.twist = Object.assign({}, pose.twist, { [name]: [start, t] });
+      if (start === 0 && t === 0) delete pose.twist[name];
+    }
+    return this.v.send(pose);
   }
 
   reset() {
     this.remember();
     this.sliders = { twist: {}, stretch: {} };
-    this.showBone();
-    return this.v.send({});
+    const sent = this.v.send({});
+    sent.then(() => this.showBone());
+    return sent;
   }
 }
