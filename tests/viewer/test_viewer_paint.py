@@ -6,6 +6,7 @@ Rigs and the page helper: test_viewer_page.py."""
 
 from __future__ import annotations
 
+import base64
 import io
 
 import numpy as np
@@ -52,11 +53,18 @@ def tube(browser):  # noqa: F811
 
 
 # --------------------------------------------------------------------------- helpers
+B64 = """a => { const u = new Uint8Array(a.buffer, a.byteOffset, a.byteLength); let s = "";
+  for (let i = 0; i < u.length; i += 32768) {
+    s += String.fromCharCode.apply(null, u.subarray(i, i + 32768));
+  }
+  return btoa(s); }"""
+
+
 def _weights(p):
+    """The page's W and E, bit for bit (base64 of the Float32Arrays' bytes)."""
     n, b = p.info["vertices"], p.info["bones"]
-    got = p.js("stbsViewer.weights().then(o => [Array.from(o.W), Array.from(o.E)])")
-    return (np.array(got[0], dtype=np.float32).reshape(n, b),
-            np.array(got[1], dtype=np.float32).reshape(n, b))
+    got = p.js(f"stbsViewer.weights().then(o => {{ const f = {B64}; return [f(o.W), f(o.E)]; }})")
+    return tuple(np.frombuffer(base64.b64decode(g), dtype="<f4").reshape(n, b) for g in got)
 
 
 def _shot(p):
