@@ -31,8 +31,10 @@ the input unless --save-as names it), MESH as MESH.npz; for an --example only wi
 --save-as. Files are written to a temporary file and renamed.
 
 The page draws the rig lit and shaded with its skeleton, skins it in a vertex shader
-with any of the four methods (lbs, dqs, stbs-lbs, stbs-dqs) and can be scripted through
-window.stbsViewer (docs/viewer.md)."""
+with any of the four methods (lbs, dqs, stbs-lbs, stbs-dqs), two of them side by side
+on request, poses it by dragging joints (stretching the bones, or by inverse kinematics
+keeping their lengths), a rotation gizmo and twist and stretch sliders, saves, downloads
+and loads pose files, and can be scripted through window.stbsViewer (docs/viewer.md)."""
 EPILOG = f"""examples:
   {EXAMPLE}
   stbs view                                     # the arm example
