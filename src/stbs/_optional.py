@@ -25,6 +25,7 @@ EXTRAS = {
     "cholespy": ("cholespy", "weights"),
     "igl": ("libigl", "bench"),
     "playwright": ("playwright", "bench"),
+    "pygltflib": ("pygltflib", "gltf"),
 }
 
 
