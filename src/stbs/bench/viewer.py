@@ -486,6 +486,9 @@ def collect(args: argparse.Namespace, *, log: Log = quiet) -> tuple[dict, dict, 
                                log=log)
         if bench.errors:
             log("page errors: " + "; ".join(bench.errors[:3]))
+    if args.gpu and "swiftshader" in str(meta.get("renderer")).lower():
+        log("note: --gpu was given, but Chromium found no GPU it could use and rendered "
+            "with SwiftShader (see the WebGL renderer line)")
     return {"viewer": rows}, meta, machine
 
 
