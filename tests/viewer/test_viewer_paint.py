@@ -298,9 +298,22 @@ def test_endpoint_painting_and_smoothing_keep_e_in_0_1_and_w_unchanged(tube):
     pts = [tuple(float(c) for c in _screen(cam, V[np.abs(V[:, 0] - x0) < 0.1]).mean(axis=0))
            for x0 in (2.4, 2.8)]
     radius, bone = 0.5, 5
+    p.page.mouse.move(*pts[0])
+    p.js("stbsViewer.setColorMode('endpoint')")
+    p.js("b => stbsViewer.setPaint({bone: b})", bone)
+    plain = _shot(p)
     p.js("o => stbsViewer.setPaint(o)", {"mode": "endpoint", "bone": bone, "op": "subtract",
                                          "radius": radius, "strength": 1.0,
                                          "falloff": "constant"})
+    # the brush's ring follows the pointer over the mesh, only near it
+    p.page.mouse.move(pts[0][0] + 1, pts[0][1])
+    p.js("new Promise(r => requestAnimationFrame(() => requestAnimationFrame(r)))")
+    p.page.screenshot(path="build/screens/paint-tube-endpoint-brush.png")
+    ring = np.argwhere(np.abs(_shot(p) - plain).max(axis=2) > 40)
+    assert len(ring) > 20
+    r_px = np.abs(_screen(cam, np.array([V[np.abs(V[:, 0] - 2.4) < 0.1].mean(axis=0)]))
+                  - _screen(cam, np.array([V[np.abs(V[:, 0] - 2.4 - radius) < 0.1].mean(axis=0)])))
+    assert np.abs(ring[:, ::-1] - pts[0]).max() < 1.5 * np.linalg.norm(r_px) + 4
     st = _stroke(p, pts)
     W1, E1 = _weights(p)
     changed = _check_region(E0, E1, bone, st["dabs"], radius, V)
@@ -319,6 +332,7 @@ def test_endpoint_painting_and_smoothing_keep_e_in_0_1_and_w_unchanged(tube):
     assert np.array_equal(_weights(p)[1], E0)
     assert p.js("stbsViewer.paintUndo()") is False            # nothing more to undo
     p.js("stbsViewer.setPaint({mode: 'off'})")
+    p.js("stbsViewer.setColorMode('shaded')")
     with pytest.raises(Exception, match="brush op: expected one of add, subtract, smooth"):
         p.js("stbsViewer.setPaint({op: 'blur'})")
     with pytest.raises(Exception, match="bone: expected an index 0..19 or a bone name"):

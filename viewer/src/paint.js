@@ -78,7 +78,56 @@ export class WeightEditor {
     window.addEventListener("pointercancel", (e) => this.onUp(e), { capture: true });
     window.addEventListener("keydown", (e) => this.onKey(e), { capture: true });
     this.canvas = canvas;
+    canvas.addEventListener("pointerleave", () => this.hideRing());
+    this.ring = this.makeRing();
+    v.scene.add(this.ring);
     this.buildPanel();
+  }
+
+  // ------------------------------------------------------------------ the brush ring
+  makeRing() {
+    const k = 64, pts = new Float32Array(3 * k);
+    for (let i = 0; i < k; i++) {
+      pts[3 * i] = Math.cos(2 * Math.PI * i / k); pts[3 * i + 1] = Math.sin(2 * Math.PI * i / k);
+    }
+    const g = new THREE.BufferGeometry();
+    g.setAttribute("position", new THREE.BufferAttribute(pts, 3));
+    const ring = new THREE.LineLoop(g, new THREE.LineBasicMaterial(
+      { color: 0xffffff, depthTest: false, transparent: true, opacity: 0.85 }));
+    ring.visible = false;
+    ring.renderOrder = 3;
+    ring.frustumCulled = false;
+    return ring;
+  }
+
+  /** The brush's circle on the posed surface at a hit, facing along the surface normal. */
+  showRing(hit) {
+    const r = this.ring, n = new THREE.Vector3(...hit.normal);
+    if (n.lengthSq() === 0) n.set(0, 0, 1);
+    r.position.set(...hit.posed);
+    r.quaternion.setFromUnitVectors(new THREE.Vector3(0, 0, 1), n.normalize());
+    r.scale.setScalar(this.settings.radius);
+    r.visible = true;
+    this.v.render();
+  }
+
+  hideRing() {
+    if (!this.ring.visible || this.stroke) return;
+    this.ring.visible = false;
+    this.v.render();
+  }
+
+  /** Pointer over the canvas in paint mode: the ring follows (once a frame). */
+  hover(e) {
+    if (this.settings.mode === "off" || e.target !== this.canvas) { this.hideRing(); return; }
+    this.hoverAt = [e.clientX, e.clientY];
+    if (this.hoverFrame) return;
+    this.hoverFrame = requestAnimationFrame(() => {
+      this.hoverFrame = 0;
+      if (this.stroke || this.settings.mode === "off" || !this.hoverAt) return;
+      const hit = this.pick(...this.hoverAt);
+      if (hit) this.showRing(hit); else this.hideRing();
+    });
   }
 
   // ------------------------------------------------------------------ mesh helpers
@@ -223,6 +272,8 @@ export class WeightEditor {
     }
     const boneChanged = s.bone !== this.settings.bone;
     this.settings = s;
+    if (s.mode === "off") this.hideRing();
+    else if (this.ring.visible) { this.ring.scale.setScalar(s.radius); this.v.render(); }
     if (boneChanged) this.selectBone(s.bone, true);
     this.showSettings();
     return this.paintSettings();
@@ -278,6 +329,8 @@ export class WeightEditor {
     const wa = 1 - best.u - best.v, R = this.rest;
     best.rest = [0, 1, 2].map((k) => wa * R[a + k] + best.u * R[b + k] + best.v * R[c + k]);
     best.posed = [0, 1, 2].map((k) => wa * U[a + k] + best.u * U[b + k] + best.v * U[c + k]);
+    const e1 = [0, 1, 2].map((k) => U[b + k] - U[a + k]), e2 = [0, 1, 2].map((k) => U[c + k] - U[a + k]);
+    best.normal = [e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2], e1[0] * e2[1] - e1[1] * e2[0]];
     return best;
   }
 
@@ -295,7 +348,8 @@ export class WeightEditor {
   }
 
   onMove(e) {
-    if (!this.stroke || e.pointerId !== this.stroke.id) return;
+    if (!this.stroke) { this.hover(e); return; }
+    if (e.pointerId !== this.stroke.id) return;
     e.stopImmediatePropagation();
     e.preventDefault();
     const hit = this.pick(e.clientX, e.clientY);
@@ -362,6 +416,7 @@ export class WeightEditor {
     st.dabs.push({ rest: hit.rest.slice(), posed: hit.posed.slice(), x, y, radius: s.radius });
     st.last = hit.rest;
     if (changed.length) this.updateRows(changed);
+    this.showRing(hit);
   }
 
   /**
