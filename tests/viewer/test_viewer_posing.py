@@ -146,6 +146,13 @@ def test_ik_drag_in_a_branch_stops_at_the_branching_joint(plate):
     assert np.delete(moved, branch).max() < 1e-5 and moved[branch].min() > 1e-4
     plate.js("stbsViewer.undo()")
     assert np.abs(np.array(plate.js("stbsViewer.posedJoints()")) - J0).max() < 1e-5
+    # the root joint: the skeleton moves as a whole
+    x, y = plate.js("stbsViewer.jointScreenPositions()")[0]
+    _drag(plate, x, y, 30, -20)
+    shift = np.array(plate.js("stbsViewer.posedJoints()")) - J0
+    assert np.linalg.norm(shift[0]) > 1e-3 and np.abs(shift - shift[0]).max() < 1e-5
+    assert "translate" in plate.js("stbsViewer.getPose()")
+    plate.js("stbsViewer.undo()")
     plate.js("stbsViewer.setDragMode('stretch')")
     assert plate.errors == []
 
@@ -211,6 +218,9 @@ def test_the_gizmo_turns_a_bone_and_its_children_in_2d(plate):
     plate.js("stbsViewer.undo()")
     assert plate.js("stbsViewer.getPose()") == before
     plate.js("stbsViewer.setGizmo(null)")
+    assert plate.js("stbsViewer.gizmo()") is None
+    msg = plate.js("stbsViewer.setGizmo('elbow').then(() => 'ok', e => e.message)")
+    assert msg == 'gizmo: expected a bone index 0..19 or name, got "elbow"'
     assert plate.js("stbsViewer.gizmo()") is None
     assert plate.errors == []
 
