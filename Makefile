@@ -34,7 +34,8 @@ viewer/node_modules/.package-lock.json: viewer/package.json viewer/package-lock.
 	npm ci --prefix viewer --no-audit --no-fund
 	@touch $@
 
-$(VIEWER_JS): viewer/node_modules/.package-lock.json $(wildcard viewer/src/*.js)
+$(VIEWER_JS): viewer/node_modules/.package-lock.json \
+  $(filter-out viewer/src/three_lbs.js,$(wildcard viewer/src/*.js))
 	viewer/node_modules/.bin/esbuild viewer/src/main.js --bundle --format=esm \
 	  --target=es2020 --minify --log-level=warning --outfile=$@
 
