@@ -171,15 +171,25 @@ export class Timeline {
     v.render();
   }
 
-  /** Show the clip's pose at t exactly and make it the server's current pose. */
-  async show(t) {
-    const reply = await this.apiJSON("/api/clip/pose", this.post({ clip: this.clip(), time: t }));
-    this.v.lastSent = copy(reply.pose);
-    await this.v.fetchPose();
-    this.v.render();
-    this.time = t;
-    this.updateBar();
-    return reply;
+  /**
+   * Show the clip's pose at t exactly and make it the server's current pose. Shows run
+   * one after another in the order asked for, so the last one asked for is what stays.
+   */
+  show(t) {
+    const clip = this.clip();
+    const run = async () => {
+      const reply = await this.apiJSON("/api/clip/pose", this.post({ clip, time: t }));
+      this.v.lastSent = copy(reply.pose);
+      await this.v.fetchPose();
+      this.v.render();
+      this.time = t;
+      this.updateBar();
+      return reply;
+    };
+    const mine = (this.showing || Promise.resolve()).catch(() => {}).then(run);
+    this.showing = mine;
+    mine.finally(() => { if (this.showing === mine) this.showing = null; }).catch(() => {});
+    return mine;
   }
 
   /** Stop playing and show the clip at t (seconds); resolves to {time, exact} once drawn. */
