@@ -7,6 +7,7 @@ Rigs and the page helper: test_viewer_page.py."""
 from __future__ import annotations
 
 import base64
+import contextlib
 import io
 
 import numpy as np
@@ -154,6 +155,22 @@ def _check_region(before, after, col, dabs, radius, V):
     return changed
 
 
+@contextlib.contextmanager
+def _spy(srv):
+    """The request bodies of POST /api/endpoint-weights while in the block."""
+    calls, real = [], srv.endpoint_column
+
+    def spy(obj):
+        calls.append(obj)
+        return real(obj)
+
+    srv.endpoint_column = spy
+    try:
+        yield calls
+    finally:
+        del srv.endpoint_column
+
+
 def _no_errors(p):
     """No errors but the browser's own line for the 400 a test asked for."""
     assert all("status of 400" in e for e in p.errors), p.errors
@@ -283,7 +300,13 @@ def test_a_stroke_on_the_posed_tube_paints_w_inside_the_brush_only(tube):
     p.page.keyboard.press("Control+Shift+z")
     assert np.array_equal(_weights(p)[0], W1)
     assert p.js("stbsViewer.idle().then(() => stbsViewer.getPose())") == pose_before
-    assert p.js("stbsViewer.paintUndo()") is True
+    # recomputing endpoint weights now sends the painted W (the server's is the rig's)
+    with _spy(p.srv) as calls:
+        p.js("b => stbsViewer.recomputeEndpoint(b, 'projection')", bone)
+    assert np.array_equal(np.array(calls[0]["W"], dtype=np.float32), W1)
+    for _ in range(2):
+        assert p.js("stbsViewer.paintUndo()") is True
+    assert np.array_equal(_weights(p)[0], W0) and np.array_equal(_weights(p)[1], E0)
     p.js("stbsViewer.setPaint({mode: 'off'})")
     assert p.errors == []
 
@@ -379,7 +402,10 @@ def test_recompute_one_bones_endpoint_weights_by_projection(plate):
     p = plate
     W0, E0 = _weights(p)
     bone = 7
-    col = p.js("b => stbsViewer.recomputeEndpoint(b, 'projection').then(a => Array.from(a))", bone)
+    with _spy(p.srv) as calls:       # W as the server has it (saved above): not sent
+        col = p.js("b => stbsViewer.recomputeEndpoint(b, 'projection').then(a => Array.from(a))",
+                   bone)
+    assert calls == [{"bone": bone, "method": "projection"}]
     ref = stbs.weights.projection(np.asarray(p.rig.V), p.rig.skeleton)
     ref = np.asarray(ref.toarray() if hasattr(ref, "toarray") else ref)[:, bone]
     assert np.abs(np.array(col) - ref).max() < 1e-6

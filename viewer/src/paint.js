@@ -26,6 +26,12 @@ const FALL = {
 
 const UNDO_LIMIT = 100;
 
+function sameArray(a, b) {
+  if (a.length !== b.length) return false;
+  for (let k = 0; k < a.length; k++) if (a[k] !== b[k]) return false;
+  return true;
+}
+
 function bad(what, expected, got) {
   return new Error(`${what}: expected ${expected}, got ${JSON.stringify(got)}`);
 }
@@ -65,6 +71,7 @@ export class WeightEditor {
     const geom = v.mesh.geometry;
     // the server's layout (from its float64 W) stands for every row still as loaded
     this.W0 = this.W.slice();
+    this.serverW = this.W0;
     this.I4_0 = geom.attributes.stbsIndex.array.slice();
     this.W4_0 = geom.attributes.stbsWeight.array.slice();
     this.sel = new Float32Array(2 * this.n);       // per vertex: W and f(E) of the selected bone
@@ -563,9 +570,12 @@ export class WeightEditor {
     if (options === null || typeof options !== "object" || Array.isArray(options)) {
       throw bad("endpoint options", "an object", options);
     }
-    const W = [], b = this.b;
-    for (let r = 0; r < this.n; r++) W.push(Array.from(this.W.subarray(r * b, (r + 1) * b)));
-    const body = Object.assign({}, options, { bone: i, method, W });
+    const body = Object.assign({}, options, { bone: i, method });
+    if (!sameArray(this.W, this.serverW)) {     // painted since loaded or saved: send ours
+      const W = [], b = this.b;
+      for (let r = 0; r < this.n; r++) W.push(Array.from(this.W.subarray(r * b, (r + 1) * b)));
+      body.W = W;
+    }
     const r = await this.api("/api/endpoint-weights", {
       method: "POST", body: JSON.stringify(body),
       headers: { "Content-Type": "application/json", Accept: "application/octet-stream" } });
@@ -579,9 +589,11 @@ export class WeightEditor {
     const nb = this.n * this.b, body = new Float32Array(2 * nb);
     body.set(this.W, 0);
     body.set(this.E, nb);
+    const sent = this.W.slice();
     const r = await this.api("/api/save-rig", {
       method: "POST", body: body.buffer,
       headers: { "Content-Type": "application/octet-stream", "X-Stbs-Arrays": "W,E", "X-Stbs-Dtype": "float32" } });
+    this.serverW = sent;          // the rig served now has these weights
     return r.json();
   }
 

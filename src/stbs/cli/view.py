@@ -34,7 +34,10 @@ The page draws the rig lit and shaded with its skeleton, skins it in a vertex sh
 with any of the four methods (lbs, dqs, stbs-lbs, stbs-dqs), two of them side by side
 on request, poses it by dragging joints (stretching the bones, or by inverse kinematics
 keeping their lengths), a rotation gizmo and twist and stretch sliders, saves, downloads
-and loads pose files, and can be scripted through window.stbsViewer (docs/viewer.md)."""
+and loads pose files, colours the mesh by its bone or endpoint weights, paints them with
+a brush (undoable), recomputes one bone's endpoint weights by any --endpoint method,
+shapes them with a curve (paper Fig. 10), saves the painted rig, and can be scripted
+through window.stbsViewer (docs/viewer.md)."""
 EPILOG = f"""examples:
   {EXAMPLE}
   stbs view                                     # the arm example
