@@ -363,6 +363,44 @@ def test_endpoint_painting_and_smoothing_keep_e_in_0_1_and_w_unchanged(tube):
     assert p.errors == []
 
 
+def test_taking_weight_from_a_bone_that_had_it_all_gives_it_to_the_parent(tube):
+    p = tube
+    p.js("stbsViewer.setPose({})")
+    p.js("stbsViewer.frame()")
+    W0, E0 = _weights(p)
+    V = np.asarray(p.rig.V, dtype=np.float64)
+    F = np.asarray(p.rig.F)
+    cam = p.js("stbsViewer.camera()")
+    at = [tuple(float(c) for c in _screen(cam, V[np.abs(V[:, 0] - 5.25) < 0.1]).mean(axis=0))]
+    bone, parent = 10, int(p.rig.skeleton.parents[10])
+    assert parent == 9
+    # one dab: bone 10 takes all the weight within 0.6 (the others scaled to 0)
+    p.js("o => stbsViewer.setPaint(o)", {"mode": "bone", "bone": bone, "op": "add",
+                                         "radius": 0.6, "strength": 1.0, "falloff": "constant"})
+    big = _stroke(p, at)["dabs"][0]["rest"]
+    W1, _ = _weights(p)
+    inside = np.linalg.norm(V - big, axis=1) < 0.6
+    assert np.all(W1[inside, bone] == 1) and np.all(np.delete(W1[inside], bone, axis=1) == 0)
+    # then half of it away within 0.3: where no neighbour has another bone, the parent gets it
+    p.js("stbsViewer.setPaint({op: 'subtract', radius: 0.3, strength: 0.5})")
+    small = _stroke(p, at)["dabs"][0]["rest"]
+    W2, _ = _weights(p)
+    core = np.linalg.norm(V - small, axis=1) < 0.3
+    nb = np.zeros(len(V), bool)        # vertices with a neighbour outside the first dab
+    for a in range(3):
+        for b in range(3):
+            nb[F[:, a]] |= ~inside[F[:, b]]
+    sel = core & ~nb
+    assert sel.sum() >= 8
+    assert np.all(W2[sel, bone] == 0.5) and np.all(W2[sel, parent] == 0.5)
+    assert np.abs(W2.astype(np.float64).sum(axis=1) - 1).max() < 2e-6
+    for _ in range(2):
+        assert p.js("stbsViewer.paintUndo()") is True
+    assert np.array_equal(_weights(p)[0], W0)
+    p.js("stbsViewer.setPaint({mode: 'off'})")
+    assert p.errors == []
+
+
 def test_painting_on_the_plate_saves_and_a_fresh_page_shows_it(plate, browser):  # noqa: F811
     p = plate
     p.js("stbsViewer.setPose({})")
