@@ -233,6 +233,20 @@ def test_colour_modes_change_the_picture_and_endpoint_is_grey_where_w_is_0(plate
     assert checked["zero"] >= 10 and checked["heavy"] >= 5, checked
     with pytest.raises(Exception, match="colour mode: expected one of shaded, bones, endpoint"):
         p.js("stbsViewer.setColorMode('weights')")
+    # the menus do the same
+    p.page.select_option("#color-mode", "bones")
+    assert p.js("stbsViewer.colorMode()") == "bones"
+    p.js("document.getElementById('weights-panel').open = true")
+    for sel, value, key in (("#paint-mode", "endpoint", "mode"), ("#paint-op", "smooth", "op"),
+                            ("#paint-falloff", "linear", "falloff")):
+        p.page.select_option(sel, value)
+        assert p.js("stbsViewer.paint()")[key] == value
+    p.page.fill("#paint-strength", "0.7")
+    assert p.js("stbsViewer.paint()")["strength"] == 0.7
+    p.page.select_option("#bone", "5")
+    assert p.js("stbsViewer.paint()")["bone"] == 5
+    p.js("stbsViewer.setPaint({mode: 'off', op: 'add', falloff: 'smooth', strength: 0.25})")
+    p.js("document.getElementById('weights-panel').open = false")
     p.js("stbsViewer.setColorMode('shaded')")
     assert p.errors == []
 
@@ -350,8 +364,16 @@ def test_endpoint_painting_and_smoothing_keep_e_in_0_1_and_w_unchanged(tube):
     changed = _check_region(E1, E2, bone, st["dabs"], radius, V)
     assert E2.min() >= 0 and E2.max() <= 1 and np.array_equal(W2, W0)
     assert np.all(E2[changed, bone] >= E1[changed, bone])      # the hole fills from its rim
-    for _ in range(2):
-        assert p.js("stbsViewer.paintUndo()") is True
+    assert p.js("stbsViewer.paintUndo()") is True
+    assert np.array_equal(_weights(p)[1], E1)
+    p.js("document.getElementById('weights-panel').open = true")     # the buttons
+    p.page.click("#paint-undo")
+    assert np.array_equal(_weights(p)[1], E0)
+    assert p.js("document.getElementById('paint-undo').disabled") is True
+    p.page.click("#paint-redo")
+    assert np.array_equal(_weights(p)[1], E1)
+    p.page.click("#paint-undo")
+    p.js("document.getElementById('weights-panel').open = false")
     assert np.array_equal(_weights(p)[1], E0)
     assert p.js("stbsViewer.paintUndo()") is False            # nothing more to undo
     p.js("stbsViewer.setPaint({mode: 'off'})")
