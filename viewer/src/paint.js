@@ -678,6 +678,8 @@ export class WeightEditor {
         try { this.setSpline(this.settings.bone, inner); } catch (err) { this.say(err.message, true); }
       });
     }
+    // the canvas has no size while the box is closed: draw it when it opens
+    $("weights-panel")?.addEventListener("toggle", () => this.curve && this.curve.draw());
     $("spline-apply")?.addEventListener("click", () => this.applySpline(this.settings.bone));
     $("spline-reset")?.addEventListener("click", () => this.setSpline(this.settings.bone, []));
     if ($("save-rig") && !(this.v.summary.save && this.v.summary.save.rig)) {
