@@ -143,9 +143,9 @@ def _six_bone_rig(seed=4):
     n, b = len(tube.V), tube.skeleton.n_bones
     rng = np.random.default_rng(seed)
     home = np.clip(np.floor(tube.V[:, 0] * 2), 0, b - 1).astype(int)
-    idx = (home[:, None] + np.arange(-2, 4)[None]) % b
+    idx = np.clip(home - 2, 0, b - 6)[:, None] + np.arange(6)[None]     # 6 bones near it
     w = rng.uniform(0.05, 1.0, (n, 6))
-    w[:, 2] += 2.0
+    np.put_along_axis(w, (home - idx[:, 0])[:, None], 2.0, axis=1)   # its own bone most
     w /= w.sum(axis=1, keepdims=True)
     W = sp.csr_array((w.ravel(), idx.ravel(), np.arange(0, 6 * n + 1, 6)), shape=(n, b))
     return stbs.Rig(V=tube.V, F=tube.F, skeleton=tube.skeleton, W=W)
@@ -172,8 +172,9 @@ def test_the_three_lbs_peer_is_stbs_lbs_for_a_rotation_only_pose(bench):
         page = bench.open(srv.url, "stbsViewer")
         page.evaluate("p => stbsViewer.setPose(p)", bv.bench_pose(stretch=False, twist=False))
         page.evaluate("stbsViewer.setMethod('lbs')")
-        page.evaluate("""() => { for (const id of ["hud", "panel"])
-                                   document.getElementById(id).style.display = "none"; }""")
+        # the canvas alone: the page's panels are not the mesh
+        page.evaluate("""() => { for (const el of document.body.children)
+                                   if (el.id !== "view") el.style.visibility = "hidden"; }""")
         cam = page.evaluate("stbsViewer.camera()")
         ours = _mask(page.screenshot())
         page.close()
@@ -196,7 +197,7 @@ def test_the_three_lbs_peer_is_stbs_lbs_for_a_rotation_only_pose(bench):
     assert np.abs(U - ref).max() < 1e-4 * diag
     # the same top-4 cut: without it (all six weights) the positions differ
     six = stbs.deform(V, rig.skeleton, pose, rig.W, method="lbs")
-    assert np.abs(six - ref).max() > 1e-2 * diag
+    assert np.abs(six - ref).max() > 2e-3 * diag
     # three's shader draws that posed mesh where the viewer draws its lbs
     assert ours.mean() > 0.01
     print("IoU viewer/peer", _iou(ours, theirs), "rest/peer", _iou(rest, theirs))

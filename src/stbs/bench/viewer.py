@@ -6,18 +6,22 @@ endpoint weights from the position along each bone; no BBW, so 1M vertices build
 seconds), serves it with :class:`stbs.viewer.ViewerServer` (the page and assets as
 shipped) and opens the page in Chromium through Playwright. It sets a pose with a
 rotation and a stretch on every bone and twists on some (:func:`bench_pose`), then
-for each method calls ``stbsViewer.timeFrames(frames)``: each frame packs the pose
-into the bone texture and uploads it, skins and shades the mesh in the vertex and
-fragment shaders and waits for the GPU (a 1-pixel ``readPixels``); the figure is the
-median milliseconds per frame after :data:`WARMUP` untimed frames.
+times each method with ``stbsViewer.timeFrames``: each frame packs the pose into the
+bone texture and uploads it, skins and shades the mesh in the vertex and fragment
+shaders and waits for the GPU (a 1-pixel ``readPixels``). After :data:`WARMUP`
+untimed frames per method, a method's frames are split into up to :data:`ROUNDS`
+rounds, each round visiting every method (and the peer) in turn, so that a change of
+the machine's load during the run falls on all of them alike; the figure is the
+median of the rounds' median milliseconds per frame.
 
 The peer, ``three-lbs``, is three.js's own ``SkinnedMesh`` (plain linear blend
 skinning in three's shader, Phong shading) on the same mesh with the same top-4 bone
 indices and weights, on its own page (``static/three-lbs.html``) in the same canvas
-size and with the viewer's camera. Its bones carry the same rotations and posed
-starts, but a three.js bone cannot stretch along its axis or twist along it, so the
-peer draws the pose without stretch and twist. It is timed the same way: pose to
-bone matrices (three's bone texture upload), render, 1-pixel ``readPixels``.
+size and with the viewer's camera, open beside the viewer's page. Its bones carry the
+same rotations and posed starts, but a three.js bone cannot stretch along its axis or
+twist along it, so the peer draws the pose without stretch and twist. It is timed the
+same way, in the same rounds: pose to bone matrices (three's bone texture upload),
+render, 1-pixel ``readPixels``.
 
 The canvas is :data:`CANVAS` CSS pixels at a device pixel ratio of 1 for every run.
 By default Chromium renders with SwiftShader (``--use-angle=swiftshader``): WebGL on
@@ -35,6 +39,7 @@ from __future__ import annotations
 import argparse
 import math
 import os
+import statistics
 import sys
 from collections.abc import Callable, Sequence
 from pathlib import Path
@@ -58,7 +63,7 @@ from .report import (
 )
 from .skinning import _choice_list, _parse_sizes
 
-__all__ = ["PEER", "VIEWER_METHODS", "DEFAULT_SIZES", "CANVAS", "WARMUP", "BONES",
+__all__ = ["PEER", "VIEWER_METHODS", "DEFAULT_SIZES", "CANVAS", "WARMUP", "ROUNDS", "BONES",
            "SWIFTSHADER_ARGS", "GPU_ARGS", "default_browser", "tube_rig", "bench_pose",
            "auto_frames", "ViewerBench", "run_bench", "format_table", "add_arguments",
            "requires", "collect", "run", "main"]
@@ -72,6 +77,8 @@ DEFAULT_SIZES: tuple[int, ...] = (10_000, 100_000, 1_000_000)
 CANVAS: tuple[int, int] = (1280, 720)
 #: Untimed frames before the timed ones, per method.
 WARMUP = 2
+#: The timed frames of a method are split into up to this many rounds over the methods.
+ROUNDS = 5
 #: Bones in the tube's chain.
 BONES = 20
 #: Chromium's options by default: WebGL2 through ANGLE on SwiftShader (the CPU).
@@ -309,12 +316,33 @@ def check_browser(path: str) -> None:
             "it, e.g. apt-get install chromium, or give --browser PATH or STBS_CHROMIUM)")
 
 
-def _time(page, api: str, frames: int) -> float:
-    page.evaluate(f"k => window.{api}.timeFrames(k)", WARMUP)
+def _time(page, api: str, method: str, frames: int) -> float:
+    page.bring_to_front()
+    if api == "stbsViewer":
+        page.evaluate("m => stbsViewer.setMethod(m)", method)
     ms = float(page.evaluate(f"k => window.{api}.timeFrames(k)", int(frames)))
     if not (math.isfinite(ms) and ms > 0):
         raise RuntimeError(f"{api}.timeFrames({frames}) gave {ms!r}, expected a time > 0 ms")
     return ms
+
+
+def _rounds(pages: dict, methods: Sequence[str], count: int) -> dict[str, float]:
+    """ms per frame of each method: ``count`` frames split into up to :data:`ROUNDS`
+    rounds that visit every method in turn (forwards, then backwards), so that a change
+    in the machine's load while the benchmark runs falls on every method alike; the
+    median of the rounds' medians, after :data:`WARMUP` untimed frames per method."""
+    def api(m: str) -> str:
+        return "stbsThreeLbs" if m == PEER else "stbsViewer"
+
+    for m in methods:
+        _time(pages[api(m)], api(m), m, WARMUP)
+    r = min(int(count), ROUNDS)
+    chunks = [count // r + (1 if i < count % r else 0) for i in range(r)]
+    got: dict[str, list[float]] = {m: [] for m in methods}
+    for i, k in enumerate(chunks):
+        for m in (methods if i % 2 == 0 else methods[::-1]):
+            got[m].append(_time(pages[api(m)], api(m), m, k))
+    return {m: float(statistics.median(v)) for m, v in got.items()}
 
 
 def run_bench(sizes: Sequence[int] = DEFAULT_SIZES,
@@ -343,45 +371,41 @@ def run_bench(sizes: Sequence[int] = DEFAULT_SIZES,
         order given (DESIGN §7).
     meta : dict
         ``renderer`` (WebGL's), ``browser`` (version), ``canvas`` [w, h], ``frames``
-        {size: timed frames}, ``three`` (three.js revision), ``warmup``.
+        {size: timed frames per method}, ``rounds`` {size: rounds}, ``three`` (three.js
+        revision), ``warmup``.
     """
     sizes, methods = _check(sizes, methods, frames)
     from ..viewer import ViewerServer
 
     rows: list[dict] = []
     meta: dict = {"renderer": None, "browser": bench.version, "canvas": list(bench.canvas),
-                  "frames": {}, "three": None, "warmup": WARMUP}
-    ours = [m for m in methods if m != PEER]
+                  "frames": {}, "rounds": {}, "three": None, "warmup": WARMUP}
     for n in sizes:
         count = int(frames) if frames is not None else auto_frames(n)
         meta["frames"][str(n)] = count
+        meta["rounds"][str(n)] = min(count, ROUNDS)
         log(f"{n:,} vertices: building the rig")
         rig = tube_rig(n, seed=seed)
-        times: dict[str, float] = {}
         with ViewerServer(rig, name=f"tube-{n}") as srv:
-            log(f"{n:,} vertices: loading the viewer page")
-            page = bench.open(srv.url, "stbsViewer")
+            log(f"{n:,} vertices: loading the pages")
+            pages: dict[str, object] = {}
             try:
+                viewer = pages["stbsViewer"] = bench.open(srv.url, "stbsViewer")
                 if meta["renderer"] is None:
-                    meta["renderer"] = bench.renderer(page)
-                page.evaluate("p => stbsViewer.setPose(p)", bench_pose(seed=seed))
-                cam = page.evaluate("stbsViewer.camera()")
-                for m in ours:
-                    log(f"{n:,} vertices: {m}, {count} frames")
-                    page.evaluate("m => stbsViewer.setMethod(m)", m)
-                    times[m] = _time(page, "stbsViewer", count)
+                    meta["renderer"] = bench.renderer(viewer)
+                viewer.evaluate("p => stbsViewer.setPose(p)", bench_pose(seed=seed))
+                if PEER in methods:
+                    cam = viewer.evaluate("stbsViewer.camera()")
+                    peer = pages["stbsThreeLbs"] = bench.open(
+                        f"http://127.0.0.1:{srv.port}/static/three-lbs.html?token={srv.token}",
+                        "stbsThreeLbs")
+                    meta["three"] = peer.evaluate("stbsThreeLbs.info()").get("three")
+                    peer.evaluate("c => stbsThreeLbs.setCamera(c)", cam)
+                log(f"{n:,} vertices: {', '.join(methods)}, {count} frames each in "
+                    f"{min(count, ROUNDS)} rounds")
+                times = _rounds(pages, methods, count)
             finally:
-                page.close()
-            if PEER in methods:
-                log(f"{n:,} vertices: {PEER}, {count} frames")
-                page = bench.open(f"http://127.0.0.1:{srv.port}/static/three-lbs.html"
-                                  f"?token={srv.token}", "stbsThreeLbs")
-                try:
-                    info = page.evaluate("stbsThreeLbs.info()")
-                    meta["three"] = info.get("three")
-                    page.evaluate("c => stbsThreeLbs.setCamera(c)", cam)
-                    times[PEER] = _time(page, "stbsThreeLbs", count)
-                finally:
+                for page in pages.values():
                     page.close()
         rows += [{"vertices": n, "method": m, "ms_per_frame": times[m]} for m in methods]
     return rows, meta
@@ -411,9 +435,10 @@ def format_table(rows: Sequence[dict], meta: dict, machine: dict | None = None) 
                  "ratio 1")
     lines.append("pose: a rotation and a stretch on every bone, twists on every third "
                  f"({PEER}: the same rotations, no stretch or twist: three.js bones have none)")
-    lines.append("ms/frame: median over the timed frames after "
-                 f"{meta.get('warmup', WARMUP)} warm-up frames; a frame packs and uploads the "
-                 "pose, skins, shades and waits for the GPU (1-pixel readPixels)")
+    lines.append(f"ms/frame: after {meta.get('warmup', WARMUP)} warm-up frames, the median "
+                 "of the medians of rounds that visit every method in turn; a frame packs "
+                 "and uploads the pose, skins, shades and waits for the GPU (1-pixel "
+                 "readPixels)")
     lines.append("")
     head = (f"{'vertices':>10}  {'method':<10} {'ms/frame':>9} {'fps':>7} {'x ' + PEER:>12} "
             f"{'frames':>6}")
