@@ -43,6 +43,12 @@ $(THREE_LBS_JS): viewer/node_modules/.package-lock.json viewer/src/three_lbs.js
 	viewer/node_modules/.bin/esbuild viewer/src/three_lbs.js --bundle --format=esm \
 	  --target=es2020 --minify --log-level=warning --outfile=$@
 
+# The Khronos glTF validator (npm gltf-validator, run under Node by the glTF tests),
+# from its committed lock file.
+tests/node/node_modules/.package-lock.json: tests/node/package.json tests/node/package-lock.json
+	npm ci --prefix tests/node --no-audit --no-fund
+	@touch $@
+
 # Chromium for the viewer's browser tests (Playwright drives it; it never downloads a
 # browser of its own), from apt when missing.
 $(VENV)/.stamp-chromium: | $(BIN)/python
@@ -71,7 +77,7 @@ $(VENV)/.stamp-cxx: | $(BIN)/python
 
 install: $(VENV)/.stamp-install $(VENV)/.stamp-syslibs $(VIEWER_JS) $(THREE_LBS_JS)
 install-test: $(VENV)/.stamp-test $(VENV)/.stamp-syslibs $(VENV)/.stamp-chromium $(VIEWER_JS) \
-  $(THREE_LBS_JS)
+  $(THREE_LBS_JS) tests/node/node_modules/.package-lock.json
 
 demo: install
 	$(BIN)/stbs demo --out $(DEMO_OUT)
@@ -136,5 +142,5 @@ bench-bbw: install-test
 
 clean:
 	rm -rf $(VENV) build dist src/*.egg-info $(DEMO_OUT) .pytest_cache .ruff_cache \
-	  viewer/node_modules $(VIEWER_JS) $(THREE_LBS_JS)
+	  viewer/node_modules tests/node/node_modules $(VIEWER_JS) $(THREE_LBS_JS)
 	find . -name __pycache__ -type d -prune -exec rm -rf {} +

@@ -26,6 +26,7 @@ function               formats
 :func:`write_clip`     .json clip
 :func:`read_bvh`       .bvh motion capture -> :class:`stbs.Motion`
 :func:`read_gltf`      .gltf .glb skinned mesh and animations -> rig, clips
+:func:`write_gltf`     .gltf .glb skin (+ endpoint weights), clip, baked morph targets
 :func:`read_polygons`  .poly (Triangle's planar straight-line graph) -> polygons
 =====================  ==============================================
 """
@@ -37,6 +38,7 @@ from .clip import clip_to_dict, read_clip, write_clip
 from .dmat import read_dmat, write_dmat
 from .errors import FormatError
 from .gltf import GLTF_EXTENSIONS, read_gltf
+from .gltf_write import write_gltf
 from .mesh import MESH_READ_EXTENSIONS, MESH_WRITE_EXTENSIONS, Mesh, read_mesh, write_mesh
 from .poly import read_polygons
 from .pose import pose_to_dict, read_pose, write_pose
@@ -53,6 +55,6 @@ __all__ = [
     "read_dmat", "write_dmat", "read_weights", "WEIGHT_READ_EXTENSIONS",
     "save_rig", "load_rig", "RIG_VERSION", "read_pose", "write_pose", "pose_to_dict",
     "read_clip", "write_clip", "clip_to_dict",
-    "read_polygons", "read_bvh", "read_gltf", "GLTF_EXTENSIONS",
+    "read_polygons", "read_bvh", "read_gltf", "write_gltf", "GLTF_EXTENSIONS",
     "atomic_open", "atomic_save", "atomic_write",
 ]

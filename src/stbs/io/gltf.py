@@ -28,6 +28,9 @@ How a glTF skin becomes a rig
   start), so skinning the clip with ``lbs`` reproduces the file's skinning; a joint
   whose matrix scales (an animated or non-uniform scale) cannot be a bone of a rig, so
   its scale is dropped, with a warning giving how far from rigid it was.
+- A file written by :func:`stbs.io.write_gltf` comes back whole: its skeleton from
+  ``skin.extras["stbs"]`` (the bone tails glTF has no place for) and its endpoint
+  weights from the attribute ``_ENDPOINT_WEIGHTS_0``.
 """
 
 from __future__ import annotations
@@ -313,8 +316,9 @@ def read_gltf(path: str | os.PathLike, *, skin: int | str | None = None,
     -------
     rig : Rig
         3D; ``V``, ``F``, the skeleton (one bone per joint, see the module docs), ``W``;
-        no ``E``. ``rig.meta["gltf"]`` records the file, the mesh node, the skin and the
-        joint nodes of the bones.
+        ``E`` from ``_ENDPOINT_WEIGHTS_0`` where the file has it (as
+        :func:`stbs.io.write_gltf` writes), else None. ``rig.meta["gltf"]`` records
+        the file, the mesh node, the skin and the joint nodes of the bones.
     clips : dict of str to Clip
         One per animation, by name (``"animation_K"`` when unnamed), in file order.
 
@@ -343,7 +347,7 @@ def read_gltf(path: str | os.PathLike, *, skin: int | str | None = None,
     nj = len(joints)
 
     # ---- geometry and weights
-    Vs, Fs, Ws = [], [], []
+    Vs, Fs, Ws, Es = [], [], [], []
     off = 0
     for k, prim in enumerate(g.meshes[nodes[node_k].mesh].primitives):
         at = prim.attributes
@@ -380,6 +384,20 @@ def read_gltf(path: str | os.PathLike, *, skin: int | str | None = None,
         if sets == 0:
             raise FormatError(p, f"primitive {k}: JOINTS_0 and WEIGHTS_0 (a skinned primitive)",
                               "none")
+        E_acc = getattr(at, "_ENDPOINT_WEIGHTS_0", None)       # written by stbs
+        if E_acc is not None:
+            e = f.accessor(E_acc, f"primitive {k} _ENDPOINT_WEIGHTS_0")
+            J = f.accessor(at.JOINTS_0, f"primitive {k} JOINTS_0", floats=False)
+            w0 = f.accessor(at.WEIGHTS_0, f"primitive {k} WEIGHTS_0")
+            if e.shape != (n, 4) or e.min(initial=0) < 0 or e.max(initial=0) > 1:
+                raise FormatError(p, f"primitive {k} _ENDPOINT_WEIGHTS_0: {n} VEC4 in [0, 1]",
+                                  f"{e.shape}, values in [{e.min():.3g}, {e.max():.3g}]")
+            Ek = np.zeros((n, nj))
+            use = w0 > 0
+            Ek[np.repeat(np.arange(n), 4)[use.ravel()], J[use]] = e[use]
+            Es.append(Ek)
+        else:
+            Es.append(None)
         Vs.append(V)
         Ws.append(W)
         Fs.append(_triangles(f, prim, k, off, n))
@@ -393,6 +411,12 @@ def read_gltf(path: str | os.PathLike, *, skin: int | str | None = None,
                           f"{int((tot <= 0).sum())} vertices with none (e.g. vertex "
                           f"{int(np.flatnonzero(tot <= 0)[0])})")
     W /= tot[:, None]
+    E = None
+    if any(x is not None for x in Es):
+        if any(x is None for x in Es):
+            raise FormatError(p, "_ENDPOINT_WEIGHTS_0 on every primitive or on none",
+                              "on some only")
+        E = np.vstack(Es)
 
     # ---- bind pose and bones
     if sk_g.inverseBindMatrices is None:
@@ -439,9 +463,25 @@ def read_gltf(path: str | os.PathLike, *, skin: int | str | None = None,
             d = 0.5 * d
         C.append(P[i] + d)
         BE.append([i, len(C) - 1])
+    table = (sk_g.extras or {}).get("stbs") if isinstance(sk_g.extras, dict) else None
+    if table is not None:       # written by stbs: the skeleton as it was
+        try:
+            C2 = np.asarray(table["C"], dtype=float)
+            BE2 = np.asarray(table["BE"], dtype=np.int64)
+            ok = (C2.ndim == 2 and C2.shape[1] == 3 and BE2.shape == (nj, 2)
+                  and np.allclose(C2[BE2[:, 0]], P, atol=1e-5 * size))
+        except (KeyError, TypeError, ValueError, IndexError):
+            ok = False
+        if not ok:
+            raise FormatError(p, f"skin {skin_k} extras.stbs: a bone table (C, BE, names) "
+                                 f"whose bones start at the joints' bind positions",
+                              "one that does not fit")
+        C, BE = list(C2), BE2.tolist()
     names, seen = [], set()
+    given = table.get("names") if table is not None else None
     for i, node in enumerate(joints):
-        nm = nodes[node].name or f"joint_{i}"
+        nm = str(given[i]) if given is not None and i < len(given) else (
+            nodes[node].name or f"joint_{i}")
         while nm in seen:
             nm = f"{nm}_{i}"
         seen.add(nm)
@@ -451,7 +491,7 @@ def read_gltf(path: str | os.PathLike, *, skin: int | str | None = None,
     except ValueError as exc:
         raise FormatError(p, "joints whose bind positions make a valid skeleton",
                           str(exc)) from None
-    rig = Rig(V=V, F=F, skeleton=sk, W=W,
+    rig = Rig(V=V, F=F, skeleton=sk, W=W, E=E,
               meta={"gltf": {"file": p.name, "node": node_k, "skin": skin_k,
                              "joints": [int(j) for j in joints]}})
 

@@ -1,0 +1,177 @@
+"""glTF 2.0 out: stbs.io.write_gltf. Round trips, the Khronos validator on every file
+written, clips that play as our lbs, baked morph targets equal to the Deformer."""
+
+from __future__ import annotations
+
+import json
+import shutil
+import subprocess
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import stbs
+from stbs import transforms as tf
+from stbs.io import read_gltf, write_gltf
+from stbs.io.gltf import _File
+from stbs.io.gltf_write import quantize_weights
+from stbs.shapes import bar
+
+NODE_DIR = Path(__file__).resolve().parents[1] / "node"
+
+
+def validate(*paths) -> list[dict]:
+    """The Khronos glTF validator's reports (tests/node, installed by make test)."""
+    node = shutil.which("node")
+    assert node, "node is needed for the glTF validator (make test installs it)"
+    assert (NODE_DIR / "node_modules" / "gltf-validator").is_dir(), (
+        "npm ci --prefix tests/node (make test does)")
+    out = subprocess.run([node, str(NODE_DIR / "validate.mjs"), *map(str, paths)],
+                         capture_output=True, text=True, timeout=120, check=True)
+    return [json.loads(line) for line in out.stdout.splitlines()]
+
+
+@pytest.fixture(scope="module")
+def rig():
+    V, F, sk, W = bar(10, 3, 3)
+    E = stbs.weights.projection(V, sk)
+    return stbs.Rig(V=V, F=F, skeleton=sk, W=W, E=E)
+
+
+@pytest.fixture(scope="module")
+def clip(rig):
+    sk = rig.skeleton
+    R = tf.axis_angle_to_matrix(np.array([[0, 0, 1.0], [0, 1, 0]]), np.array([0.3, 0.9]))
+    p1 = stbs.forward_kinematics(sk, rotations=R, stretch=[1, 1.4],
+                                 twist=[0, 0, 1.5 * np.pi], translation=[0.2, 0, 0])
+    p2 = stbs.forward_kinematics(sk, rotations=R.transpose(0, 2, 1), twist=[0, 2, -1])
+    return stbs.Clip([(0.0, stbs.Pose.rest(sk)), (0.5, p1), (1.0, p2)], fps=8)
+
+
+def _diag(V):
+    return float(np.linalg.norm(np.ptp(V, axis=0)))
+
+
+@pytest.mark.parametrize("ext", [".glb", ".gltf"])
+def test_round_trip(tmp_path, rig, ext):
+    path = tmp_path / f"bar{ext}"
+    write_gltf(path, rig)
+    back, clips = read_gltf(path)
+    assert clips == {}
+    np.testing.assert_allclose(back.V, rig.V, atol=1e-6 * _diag(rig.V))
+    np.testing.assert_array_equal(back.F, rig.F)
+    np.testing.assert_allclose(back.C, rig.C, atol=1e-6 * _diag(rig.V))
+    np.testing.assert_array_equal(back.BE, rig.BE)
+    assert back.skeleton.names == rig.skeleton.names
+    top = stbs.skinning.top_k(rig.W, rig.E, max_influences=4, pad=(4,))
+    W4 = np.zeros_like(rig.W)
+    E4 = np.zeros_like(rig.W)
+    rows = np.arange(len(rig.V))
+    for c in range(4):
+        W4[rows, top.idx[c]] += top.w[c]
+        E4[rows, top.idx[c]] += np.where(top.w[c] > 0, top.e[c], 0)
+    np.testing.assert_allclose(back.W, W4, atol=1 / 65535)
+    on = back.W > 0
+    np.testing.assert_allclose(back.E[on], E4[on], atol=1e-7)
+    assert [r["errors"] for r in validate(path)] == [0]
+
+
+def test_quantised_weights_sum_exactly(tmp_path, rig):
+    rng = np.random.default_rng(3)
+    w = rng.uniform(0, 1, (500, 4)) * (rng.uniform(size=(500, 4)) > 0.3)
+    w[w.sum(1) == 0, 0] = 1
+    q = quantize_weights(w)
+    assert (q.sum(axis=1) == 65535).all()
+    assert np.abs(q / 65535 - w / w.sum(1, keepdims=True)).max() < 1 / 65535
+    path = tmp_path / "q.glb"
+    write_gltf(path, rig)
+    f = _File(path)
+    attrs = f.g.meshes[0].primitives[0].attributes
+    raw = f.accessor(attrs.WEIGHTS_0, "w", floats=False)
+    assert (raw.sum(axis=1) == 65535).all()
+    J = f.accessor(attrs.JOINTS_0, "j", floats=False)
+    assert (J[raw == 0] == 0).all()
+
+
+def test_a_clip_plays_as_our_lbs(tmp_path, rig, clip):
+    path = tmp_path / "clip.glb"
+    write_gltf(path, rig, clip)
+    back, clips = read_gltf(path)
+    played = clips["clip"]
+    times = clip.sample_times()
+    np.testing.assert_allclose(played.times, times - times[0], atol=1e-6)
+    diag = _diag(rig.V)
+    for t, (_, pose) in zip(times, played.keys, strict=True):
+        # glTF skins rigidly: the clip's rotations and origins, stretch 1, no twist
+        p = clip.pose(float(t))
+        rigid = stbs.Pose(rig.skeleton, rotations=p.rotations, origins=p.origins)
+        want = stbs.deform(rig.V, rig.skeleton, rigid, rig.W, method="lbs", max_influences=4)
+        got = stbs.deform(back.V, back.skeleton, pose, back.W, method="lbs")
+        assert np.abs(got - want).max() < 1e-4 * diag
+        assert (pose.stretch == 1).all() and not pose.twist.any()
+    assert [r["errors"] for r in validate(path)] == [0]
+
+
+def test_a_baked_clip_holds_the_deformer_frames(tmp_path, rig, clip):
+    path = tmp_path / "baked.glb"
+    write_gltf(path, rig, clip, bake="stbs-dqs")
+    f = _File(path)
+    mesh = f.g.meshes[0]
+    targets = mesh.primitives[0].targets
+    times = clip.sample_times()
+    assert len(targets) == len(times) and mesh.weights == [0.0] * len(times)
+    dfm = stbs.Deformer(rig.V, rig.skeleton, rig.W, rig.E, method="stbs-dqs")
+    V32 = rig.V.astype(np.float32)
+    for t, tgt in zip(times, targets, strict=True):
+        d = f.accessor(tgt["POSITION"] if isinstance(tgt, dict) else tgt.POSITION, "target")
+        U = dfm(clip.pose(float(t)))
+        np.testing.assert_allclose(V32 + d.astype(np.float32), U, atol=2e-6 * _diag(rig.V))
+    # the weights channel shows frame k alone at its time
+    anim = f.g.animations[0]
+    out = f.accessor(anim.samplers[0].output, "w").reshape(len(times), len(times))
+    np.testing.assert_array_equal(out, np.eye(len(times)))
+    # the stretch and twist are in the baked frames: far from what lbs gives
+    lbs = stbs.deform(rig.V, rig.skeleton, clip.pose(0.5), rig.W, method="lbs")
+    k = int(np.argmin(np.abs(times - 0.5)))
+    baked = V32 + f.accessor(targets[k]["POSITION"] if isinstance(targets[k], dict)
+                             else targets[k].POSITION, "t")
+    assert np.abs(baked - lbs).max() > 0.05 * _diag(rig.V)
+    assert [r["errors"] for r in validate(path)] == [0]
+
+
+def test_every_file_validates_with_no_warnings(tmp_path, rig, clip):
+    paths = [tmp_path / "a.glb", tmp_path / "b.gltf", tmp_path / "c.glb"]
+    write_gltf(paths[0], rig)
+    write_gltf(paths[1], rig, clip)
+    write_gltf(paths[2], rig, clip, bake="lbs")
+    reports = validate(*paths)
+    assert [(r["errors"], r["warnings"]) for r in reports] == [(0, 0)] * 3, reports
+
+
+def test_the_validator_catches_a_broken_file(tmp_path, rig):
+    # the check above can fail: a file with an out-of-range index is an error
+    path = tmp_path / "bad.gltf"
+    write_gltf(path, rig)
+    doc = json.loads(path.read_text())
+    doc["meshes"][0]["primitives"][0]["indices"] = 999
+    path.write_text(json.dumps(doc))
+    assert validate(path)[0]["errors"] > 0
+
+
+def test_errors(tmp_path, rig, clip):
+    sk2 = stbs.Skeleton([[0, 0], [1, 0]], [[0, 1]])
+    flat = stbs.Rig(V=[[0, 0.1], [1, 0.1], [1, -0.1]], F=[[0, 2, 1]], skeleton=sk2,
+                    W=np.ones((3, 1)))
+    with pytest.raises(ValueError, match="glTF holds 3D rigs"):
+        write_gltf(tmp_path / "x.glb", flat)
+    with pytest.raises(ValueError, match="bake needs a clip"):
+        write_gltf(tmp_path / "x.glb", rig, bake="lbs")
+    with pytest.raises(ValueError, match="bake must be one of"):
+        write_gltf(tmp_path / "x.glb", rig, clip, bake="fast")
+    other = stbs.Clip([(0.0, stbs.Pose.rest(stbs.Skeleton([[0, 0, 0], [0, 0, 1]], [[0, 1]])))])
+    with pytest.raises(ValueError, match="clip must be of the rig's skeleton"):
+        write_gltf(tmp_path / "x.glb", rig, other)
+    with pytest.raises(ValueError, match="supported extensions are .gltf, .glb"):
+        write_gltf(tmp_path / "x.obj", rig)
+    assert not list(tmp_path.iterdir())
