@@ -223,7 +223,7 @@ _RENDERER = """() => {
 
 
 class ViewerBench:
-    """Chromium driven by Playwright, with one page at a time; a context manager.
+    """Chromium driven by Playwright, its pages in one browser context; a context manager.
 
     Parameters
     ----------
@@ -430,6 +430,9 @@ def format_table(rows: Sequence[dict], meta: dict, machine: dict | None = None) 
     """The report: the renderer and canvas, then ms/frame, fps and the ratio to three-lbs."""
     lines = machine_lines(machine, f"Chromium {meta.get('browser')}, three.js r"
                           f"{meta.get('three') or '-'}", "frame times") if machine else []
+    end = (machine or {}).get("load_average_end")
+    if end:
+        lines.append(f"load average at the end: {end[0]:.2f} {end[1]:.2f} {end[2]:.2f}")
     w, h = meta.get("canvas", CANVAS)
     lines.append(f"WebGL renderer: {meta.get('renderer')}; canvas {w}x{h} at device pixel "
                  "ratio 1")
@@ -511,6 +514,7 @@ def collect(args: argparse.Namespace, *, log: Log = quiet) -> tuple[dict, dict, 
                                log=log)
         if bench.errors:
             log("page errors: " + "; ".join(bench.errors[:3]))
+    machine["load_average_end"] = load_average()
     if args.gpu and "swiftshader" in str(meta.get("renderer")).lower():
         log("note: --gpu was given, but Chromium found no GPU it could use and rendered "
             "with SwiftShader (see the WebGL renderer line)")
