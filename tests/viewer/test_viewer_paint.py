@@ -233,6 +233,18 @@ def test_colour_modes_change_the_picture_and_endpoint_is_grey_where_w_is_0(plate
     assert checked["zero"] >= 10 and checked["heavy"] >= 5, checked
     with pytest.raises(Exception, match="colour mode: expected one of shaded, bones, endpoint"):
         p.js("stbsViewer.setColorMode('weights')")
+    # side by side, both views show the colours
+    p.js("stbsViewer.setCompare('lbs')")
+    try:
+        pair = {}
+        for mode in ("shaded", "endpoint"):
+            p.js("m => stbsViewer.setColorMode(m)", mode)
+            pair[mode] = _shot(p)
+        diff = np.abs(pair["shaded"] - pair["endpoint"]).max(axis=2) > 24
+        half = diff.shape[1] // 2
+        assert diff[:, :half].mean() > 0.05 and diff[:, half:].mean() > 0.05
+    finally:
+        p.js("stbsViewer.setCompare(null)")
     # the menus do the same
     p.page.select_option("#color-mode", "bones")
     assert p.js("stbsViewer.colorMode()") == "bones"

@@ -308,6 +308,7 @@ export class WeightEditor {
     const rect = this.v.viewRect ? this.v.viewRect() : this.canvas.getBoundingClientRect();
     const ndc = new THREE.Vector2(2 * (clientX - rect.left) / rect.width - 1,
                                   1 - 2 * (clientY - rect.top) / rect.height);
+    if (Math.abs(ndc.x) > 1 || Math.abs(ndc.y) > 1) return null;     // outside the (left) view
     const ray = new THREE.Raycaster();
     ray.setFromCamera(ndc, this.v.camera);
     const o = ray.ray.origin, d = ray.ray.direction;
