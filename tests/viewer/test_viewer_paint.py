@@ -488,6 +488,18 @@ def test_recompute_one_bones_endpoint_weights_by_projection(plate):
     assert np.array_equal(W1, W0)
     assert p.js("stbsViewer.paintUndo()") is True
     assert np.array_equal(_weights(p)[1], E0)
+    # the same from the box: the endpoint menu and recompute, for the selected bone
+    p.js("document.getElementById('weights-panel').open = true")
+    p.js("b => stbsViewer.setPaint({bone: b})", bone)
+    p.page.select_option("#endpoint-method", "projection")
+    p.page.click("#endpoint-recompute")
+    p.page.wait_for_function("stbsViewer.canPaintUndo()")
+    assert np.abs(_weights(p)[1][:, bone] - ref).max() < 1e-6
+    assert p.js("document.getElementById('status').textContent") == \
+        f"{p.rig.skeleton.names[bone]}: endpoint weights by projection"
+    p.js("document.getElementById('weights-panel').open = false")
+    assert p.js("stbsViewer.paintUndo()") is True
+    assert np.array_equal(_weights(p)[1], E0)
     with pytest.raises(Exception, match="endpoint method: expected one of projection"):
         p.js("stbsViewer.recomputeEndpoint(0, 'nearest')")
     with pytest.raises(Exception, match="alpha applies to method='idw' only"):   # the server's 400
@@ -562,6 +574,19 @@ def test_the_curve_editor_adds_moves_and_removes_points_with_the_mouse(plate):
     assert len(pts) == 3 and np.allclose(pts[1], [0.5, 0.8], atol=0.02)
     p.page.screenshot(path="build/screens/paint-curve-editor.png")
     m.dblclick(*at(0.5, 0.8))
+    assert p.js("stbsViewer.spline(6)") == [[0, 0], [1, 1]]
+    # apply bakes the curve drawn
+    m.click(*at(0.4, 0.8))
+    pts = p.js("stbsViewer.spline(6)")
+    _, E0 = _weights(p)
+    p.page.click("#spline-apply")
+    _, E1 = _weights(p)
+    assert np.abs(E1[:, 6] - SplineFilter(pts[1:-1])(E0[:, 6].astype(np.float64))).max() < 1e-6
+    assert np.abs(E1[:, 6] - E0[:, 6]).max() > 0.05
+    assert p.js("stbsViewer.spline(6)") == [[0, 0], [1, 1]]
+    assert p.js("stbsViewer.paintUndo()") is True
+    m.click(*at(0.4, 0.8))
+    p.page.click("#spline-reset")
     assert p.js("stbsViewer.spline(6)") == [[0, 0], [1, 1]]
     p.js("document.getElementById('weights-panel').open = false")
     _no_errors(p)
