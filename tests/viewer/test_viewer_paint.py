@@ -493,10 +493,9 @@ def test_recompute_one_bones_endpoint_weights_by_projection(plate):
     p.js("b => stbsViewer.setPaint({bone: b})", bone)
     p.page.select_option("#endpoint-method", "projection")
     p.page.click("#endpoint-recompute")
-    p.page.wait_for_function("stbsViewer.canPaintUndo()")
+    done = f"{p.rig.skeleton.names[bone]}: endpoint weights by projection"
+    p.page.wait_for_function("t => document.getElementById('status').textContent === t", arg=done)
     assert np.abs(_weights(p)[1][:, bone] - ref).max() < 1e-6
-    assert p.js("document.getElementById('status').textContent") == \
-        f"{p.rig.skeleton.names[bone]}: endpoint weights by projection"
     p.js("document.getElementById('weights-panel').open = false")
     assert p.js("stbsViewer.paintUndo()") is True
     assert np.array_equal(_weights(p)[1], E0)
