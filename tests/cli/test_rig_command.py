@@ -93,7 +93,7 @@ def test_rig_2d_with_a_joint_past_the_edge(shared_data, tmp_path, capsys):
 
 
 @pytest.mark.parametrize("extra, match", [
-    (["-o", "x.obj"], "expected a .npz rig file"),
+    (["-o", "x.obj"], "expected a rig file (.npz)"),
     (["-o", "nofolder/x.npz"], "does not exist"),
     (["-o", "x.npz", "--bone", "heat"], "needs a 3D triangle surface"),
     (["-o", "x.npz", "--bone", "magic"], "invalid choice"),

@@ -168,7 +168,8 @@ def one_error(capsys, *argv, words):
 
 def test_bad_inputs_are_one_line_and_exit_2(capsys, rig_file, tmp_path):
     one_error(capsys, tmp_path / "missing.npz", words="not found")
-    one_error(capsys, tmp_path / "mesh.obj", words="expected a .npz rig, or a MESH")
+    one_error(capsys, tmp_path / "mesh.obj",
+              words="expected a rig (.npz, or a glTF character .gltf .glb), or a MESH")
     one_error(capsys, tmp_path / "missing.obj", tmp_path / "x.tgf", words="not found")
     one_error(capsys, rig_file, "--example", "arm", words="not both")
     one_error(capsys, rig_file, "--bone", "heat", words="--bone applies to MESH SKELETON")

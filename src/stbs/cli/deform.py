@@ -23,7 +23,8 @@ DESCRIPTION = """\
 Deform a rigged mesh by a pose and write the deformed mesh.
 
 The rig is either a .npz rig file (stbs.io.save_rig: mesh, skeleton, bone weights W
-and optionally endpoint weights E) or the three files --mesh, --skeleton and
+and optionally endpoint weights E), a glTF 2.0 character (.gltf, .glb: its skin,
+and its endpoint weights when it has them), or the three files --mesh, --skeleton and
 --weights. --endpoint gives endpoint weights E (and replaces a rig's E). The STBS
 methods need E; without it they use projection endpoint weights (paper eq. 8)
 and say so on stderr.
@@ -55,8 +56,9 @@ examples:
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("rig", nargs="?", metavar="RIG.npz",
-                   help="rig file (instead of --mesh, --skeleton and --weights)")
+    p.add_argument("rig", nargs="?", metavar="RIG",
+                   help="rig file: .npz, or a glTF character .gltf .glb (instead of --mesh, "
+                        "--skeleton and --weights)")
     p.add_argument("--pose", required=True, metavar="POSE.json", help="pose file (JSON)")
     p.add_argument("--method", choices=METHODS, default="stbs-dqs",
                    help="skinning method (default: %(default)s)")
@@ -73,8 +75,12 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def requires(args: argparse.Namespace) -> list[str]:
-    """Optional modules this run needs: matplotlib and Pillow for a .png picture."""
-    return ["matplotlib", "PIL"] if str(args.output).lower().endswith(".png") else []
+    """Optional modules this run needs: matplotlib and Pillow for a .png picture,
+    pygltflib for a glTF rig."""
+    need = ["matplotlib", "PIL"] if str(args.output).lower().endswith(".png") else []
+    if args.rig and args.rig.lower().endswith((".gltf", ".glb")):
+        need.append("pygltflib")
+    return need
 
 
 @dataclass
@@ -111,7 +117,7 @@ def _output_path(out: str) -> tuple[Path, str]:
 
 
 def _load(args) -> _Rig:
-    from ..io import load_rig, read_mesh, read_skeleton, read_weights
+    from ..io import read_mesh, read_rig, read_skeleton, read_weights
 
     files = {"--mesh": args.mesh, "--skeleton": args.skeleton, "--weights": args.weights}
     if args.rig is not None:
@@ -119,7 +125,7 @@ def _load(args) -> _Rig:
         if given:
             raise CommandError(f"give either a rig file or --mesh, --skeleton and --weights, "
                               f"not both (got {args.rig!r} and {', '.join(given)})")
-        rig = load_rig(args.rig)
+        rig = read_rig(args.rig)
         r = _Rig(rig.V, rig.F, rig.T, rig.skeleton, rig.W, rig.E, f"{args.rig} (W)",
                  None if rig.E is None else f"{args.rig} (E)", [Path(args.rig)],
                  texture=rig.texture, UV=rig.UV)

@@ -203,14 +203,16 @@ def build(st: _Stages, V, F, T, sk, *, bone: str, endpoint: str, tets: str, mesh
                        clip_skeleton=clip_skeleton, remesh=not meshed)
 
 
-def check_output(path: str):
+def check_output(path: str, *, gltf: bool = False):
     from pathlib import Path
 
     from ._errors import CommandError
 
     out = Path(path)
-    if out.suffix.lower() != ".npz":
-        raise CommandError(f"output {path!r}: expected a .npz rig file")
+    allowed = (".npz", ".gltf", ".glb") if gltf else (".npz",)
+    if out.suffix.lower() not in allowed:
+        raise CommandError(f"output {path!r}: expected a rig file "
+                           f"({' '.join(allowed)})")
     if not (out.parent if str(out.parent) else Path(".")).is_dir():
         raise CommandError(f"output {path!r}: folder {str(out.parent)!r} does not exist")
     return out

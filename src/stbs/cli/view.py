@@ -76,6 +76,8 @@ def requires(args: argparse.Namespace) -> list[str]:
 
     if args.skeleton is not None and args.input is not None:
         return ["PIL"] if args.input.lower().endswith(IMAGE_EXTENSIONS) else []
+    if args.input is not None and args.input.lower().endswith((".gltf", ".glb")):
+        return ["pygltflib"]
     return []
 
 
@@ -91,9 +93,9 @@ def _check(args: argparse.Namespace):
     if args.input is None:
         kind = "example"
     elif args.skeleton is None:
-        if not args.input.lower().endswith(".npz"):
-            raise CommandError(f"{args.input!r}: expected a .npz rig, or a MESH followed by "
-                               f"its SKELETON")
+        if not args.input.lower().endswith((".npz", ".gltf", ".glb")):
+            raise CommandError(f"{args.input!r}: expected a rig (.npz, or a glTF character "
+                               f".gltf .glb), or a MESH followed by its SKELETON")
         kind = "rig"
     else:
         kind = "mesh"
@@ -174,7 +176,7 @@ def _serve(args: argparse.Namespace, kind: str, save_as):
     import errno
     from pathlib import Path
 
-    from ..io import load_rig
+    from ..io import read_rig
     from ..viewer import ViewerServer
     from ._errors import CommandError
 
@@ -184,7 +186,7 @@ def _serve(args: argparse.Namespace, kind: str, save_as):
         rig, extras = _example(name)
     elif kind == "rig":
         name = Path(args.input).stem
-        rig = load_rig(args.input)
+        rig = read_rig(args.input)
     else:
         name = Path(args.input).stem
         rig = _rig_from_files(args)

@@ -8,21 +8,26 @@ import sys
 from .rig import BONE, ENDPOINT, add_clip_argument, add_tol_argument
 
 NAME = "weights"
-HELP = "recompute a rig's bone and/or endpoint weights; write a .npz rig"
+HELP = "recompute a rig's bone and/or endpoint weights; write a rig (.npz or glTF)"
 EXAMPLE = "stbs weights arm.npz --endpoint heat -o arm-heat.npz"
 DESCRIPTION = """\
-Recompute the weights of a rig written by 'stbs rig' or stbs.save_rig, with the
-same methods and meshing as 'stbs rig' (see 'stbs rig --help'). --bone keep keeps
-the rig's bone weights W and recomputes only the endpoint weights E. The output is
-written atomically and may be the input file itself."""
+Recompute the weights of a rig written by 'stbs rig' or stbs.save_rig, or of a
+glTF 2.0 character (.gltf, .glb), with the same methods and meshing as 'stbs rig'
+(see 'stbs rig --help'). --bone keep keeps the rig's bone weights W and recomputes
+only the endpoint weights E. A glTF character written back as glTF keeps its file
+as it was (skeleton, joint orientations, bone weights, animations, materials) and
+gains the endpoint weights (attribute _ENDPOINT_WEIGHTS_0, aligned with JOINTS_0).
+The output is written atomically and may be the input file itself."""
 EPILOG = f"""examples:
   {EXAMPLE}
-  stbs weights woody.npz --bone bbw --endpoint idw -o woody-idw.npz"""
+  stbs weights woody.npz --bone bbw --endpoint idw -o woody-idw.npz
+  stbs weights character.glb --endpoint bbw -o character-stbs.glb"""
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("rig", metavar="RIG.npz", help="rig file (.npz)")
-    p.add_argument("-o", "--output", required=True, metavar="RIG.npz", help="output rig (.npz)")
+    p.add_argument("rig", metavar="RIG", help="rig file: .npz, or a glTF character .gltf .glb")
+    p.add_argument("-o", "--output", required=True, metavar="OUT",
+                   help="output rig: .npz, .gltf or .glb")
     p.add_argument("--bone", choices=(*BONE, "keep"), default="keep",
                    help="bone weights: bbw, heat, or keep the rig's (default: keep)")
     p.add_argument("--endpoint", choices=ENDPOINT, default="bbw",
@@ -33,16 +38,21 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     add_tol_argument(p)
 
 
+def requires(args: argparse.Namespace) -> list[str]:
+    """Optional modules this run needs: pygltflib for a glTF input."""
+    return ["pygltflib"] if args.rig.lower().endswith((".gltf", ".glb")) else []
+
+
 def run(args: argparse.Namespace) -> int:
-    from ..io import load_rig, save_rig
+    from ..io import read_rig, write_rig
     from ..rig import build_rig
     from ._errors import CommandError
     from .rig import _Stages, build, check_output, resolve_tol
 
-    out = check_output(args.output)
+    out = check_output(args.output, gltf=True)
     tol = resolve_tol(args.tol, args.bone, args.endpoint)
     st = _Stages()
-    rig = st.run("read rig", load_rig, args.rig)
+    rig = st.run("read rig", read_rig, args.rig)
     sk = rig.skeleton
     if args.bone == "keep":
         if args.clip_skeleton:
@@ -58,7 +68,8 @@ def run(args: argparse.Namespace) -> int:
     if args.bone != "keep":
         meta["bone"] = args.bone
     new = new.replace(meta=meta, F=rig.F)
-    st.run("write rig", save_rig, out, new)
+    source = args.rig if args.rig.lower().endswith((".gltf", ".glb")) else None
+    st.run("write rig", write_rig, out, new, source=source)
     print(st.summary(), file=sys.stderr)
     print(f"wrote {out}: {len(rig.V)} vertices, {sk.n_bones} bones")
     return 0

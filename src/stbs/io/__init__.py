@@ -27,11 +27,14 @@ function               formats
 :func:`read_bvh`       .bvh motion capture -> :class:`stbs.Motion`
 :func:`read_gltf`      .gltf .glb skinned mesh and animations -> rig, clips
 :func:`write_gltf`     .gltf .glb skin (+ endpoint weights), clip, baked morph targets
+:func:`read_rig`       .npz .gltf .glb -> :class:`stbs.Rig`
+:func:`write_rig`      .npz .gltf .glb (a glTF character keeps its file, plus E)
 :func:`read_polygons`  .poly (Triangle's planar straight-line graph) -> polygons
 =====================  ==============================================
 """
 
 from ._atomic import atomic_open, atomic_save, atomic_write
+from .anyrig import RIG_EXTENSIONS, read_rig, write_rig
 from .bf import BoneForest, read_bf
 from .bvh import read_bvh
 from .clip import clip_to_dict, read_clip, write_clip
@@ -56,5 +59,6 @@ __all__ = [
     "save_rig", "load_rig", "RIG_VERSION", "read_pose", "write_pose", "pose_to_dict",
     "read_clip", "write_clip", "clip_to_dict",
     "read_polygons", "read_bvh", "read_gltf", "write_gltf", "GLTF_EXTENSIONS",
+    "read_rig", "write_rig", "RIG_EXTENSIONS",
     "atomic_open", "atomic_save", "atomic_write",
 ]

@@ -18,6 +18,8 @@ import math
 from collections.abc import Callable
 from typing import Literal
 
+import numpy as np
+
 from .. import _checks
 from ..skeleton import Skeleton
 from .model import Rig, _weights
@@ -41,6 +43,49 @@ def _choice(name: str, value, choices) -> str:
     if value not in choices:
         raise ValueError(f"{name} must be one of {', '.join(choices)}, got {value!r}")
     return value
+
+
+def _weld(V, F, W):
+    """Merge vertices at exactly the same place: (Vw, Fw, weld, Ww) with ``weld`` (n,)
+    each vertex's welded index (in order of first occurrence), faces that collapse
+    dropped, and each welded vertex's weights the mean of its copies'."""
+    import scipy.sparse as sp
+
+    _, first, inv = np.unique(V, axis=0, return_index=True, return_inverse=True)
+    order = np.argsort(first)
+    rank = np.empty_like(order)
+    rank[order] = np.arange(len(order))
+    weld = rank[np.ravel(inv)]
+    Vw = V[first[order]]
+    Fw = weld[F]
+    Fw = Fw[(Fw[:, 0] != Fw[:, 1]) & (Fw[:, 1] != Fw[:, 2]) & (Fw[:, 0] != Fw[:, 2])]
+    Wd = W.toarray() if sp.issparse(W) else np.asarray(W, dtype=float)
+    Ww = np.zeros((len(Vw), Wd.shape[1]))
+    np.add.at(Ww, weld, Wd)
+    Ww /= np.bincount(weld, minlength=len(Vw))[:, None]
+    return Vw, Fw, weld, Ww
+
+
+def _harmonic_extension(V, T, W):
+    """W (n, b) given on the first n of V's vertices, extended to the others by the
+    discrete Laplace equation on the tetrahedra, then clipped and rows normalised."""
+    import scipy.sparse as sp
+    import scipy.sparse.linalg as spla
+
+    from ..weights import cotmatrix
+
+    n = W.shape[0]
+    Wd = W.toarray() if sp.issparse(W) else np.asarray(W, dtype=float)
+    if len(V) == n:
+        return Wd
+    L = sp.csr_array(cotmatrix(V, T))
+    Lii = L[n:][:, n:].tocsc()
+    rhs = -(L[n:][:, :n] @ Wd)
+    X = spla.splu(Lii).solve(np.asarray(rhs))
+    X = np.clip(X, 0.0, None)
+    s = X.sum(axis=1, keepdims=True)
+    X = np.where(s > 0, X / np.where(s > 0, s, 1), 1.0 / Wd.shape[1])
+    return np.vstack([Wd, X])
 
 
 def build_rig(V, sk: Skeleton, *, F=None, T=None, W=None,
@@ -136,13 +181,30 @@ def build_rig(V, sk: Skeleton, *, F=None, T=None, W=None,
     keep_W = W is not None
     if keep_W:
         W = _weights("W", W, n, sk.n_bones)
-    meshes_itself = not keep_W and bone == "bbw" and T is None and (d == 3 or remesh)
+    meshes_itself = ((not keep_W and bone == "bbw" and T is None and (d == 3 or remesh))
+                     or (keep_W and d == 3 and T is None and endpoint in ("bbw", "bbw-joints")))
     if clip_skeleton and not meshes_itself:
         raise ValueError("clip_skeleton applies when stbs meshes the shape itself (bone='bbw' "
                          "without T: a 2D mesh, or a 3D surface)")
     if keep_W and endpoint in ("bbw", "bbw-joints") and F is None and T is None:
         raise ValueError(f"endpoint={endpoint!r} needs the mesh's triangles F or tetrahedra T")
-    if keep_W:
+    weld = None
+    if keep_W and d == 3 and T is None and endpoint in ("bbw", "bbw-joints"):
+        # BBW endpoint weights solve on a volume: mesh the surface with the bones inside
+        # as for bone weights, and extend the kept W harmonically to the new vertices
+        # (the surface values stay exactly as given).
+        if F is None:
+            raise ValueError(f"endpoint={endpoint!r} in 3D needs a closed triangle surface F "
+                             "or tetrahedra T")
+        # Real assets split vertices at texture and normal seams: weld exact duplicates
+        # for the volume mesh, and give each copy its welded vertex's weight.
+        Vw, Fw, weld, Ww = _weld(V, F, W)
+        stage("tetrahedralize (bones inside)")
+        tet = tetrahedralize(Vw, Fw, sk, clip_skeleton=clip_skeleton)
+        Vm, Fm, Tm = tet.V, Fw, tet.T
+        stage("extend the bone weights inside")
+        Wm = _harmonic_extension(Vm, Tm, Ww)
+    elif keep_W:
         Vm, Fm, Tm = V, F, T
         Wm = W
     elif bone == "heat":
@@ -182,6 +244,7 @@ def build_rig(V, sk: Skeleton, *, F=None, T=None, W=None,
         elem = dict(T=Tm) if Tm is not None else dict(F=Fm)
         E = endpoint_weights(Vm, sk, method=endpoint, W=Wm, tol=tol,
                              progress=stage(f"endpoint weights ({endpoint})", bar=True),
-                             **elem)[:n]
+                             **elem)
+        E = E[weld] if weld is not None else E[:n]
     meta = {"bone": "given" if keep_W else bone, "endpoint": endpoint}
-    return Rig(V=V, F=F, T=T, skeleton=sk, W=Wm if keep_W else Wm[:n], E=E, meta=meta)
+    return Rig(V=V, F=F, T=T, skeleton=sk, W=W if keep_W else Wm[:n], E=E, meta=meta)
