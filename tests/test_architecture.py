@@ -23,7 +23,7 @@ SRC = Path(__file__).resolve().parents[1] / "src" / "stbs"
 MATHS = {"_checks", "_optional", "geometry", "transforms", "skeleton", "pose", "clip", "motion",
          "retargeting", "skinning", "weights", "meshing", "shapes"}
 DATA = {"rig", "io"}
-FRONT = {"cli", "demo", "bench", "viewer"}
+FRONT = {"cli", "demo", "bench", "viewer", "bake"}
 TIER = {**{m: 0 for m in MATHS}, **{m: 1 for m in DATA}, **{m: 2 for m in FRONT}}
 NAMES = ("maths", "data", "front end")
 

@@ -41,6 +41,8 @@ INSTALLS_ON_BOOKWORM = {
     "build": "1",
     "playwright": "1.65",    # with Debian's chromium (apt), never a downloaded browser
     "pygltflib": "1.16.5",   # pure Python; the earlier 1.16 releases are sdists only
+    "dask": "2024.8",        # pure Python
+    "distributed": "2024.8",
 }
 # Known not to install there; the reason is the failure message.
 NOT_ON_BOOKWORM = {

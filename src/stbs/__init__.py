@@ -59,7 +59,7 @@ __all__ = ["Skeleton", "Pose", "forward_kinematics", "Clip", "Motion", "retarget
 
 #: Subpackages reachable as attributes (``stbs.shapes.cigar``), imported on first use.
 _SUBPACKAGES = ("geometry", "transforms", "skinning", "weights", "meshing", "shapes", "rig",
-                "io", "cli", "demo", "bench")
+                "io", "cli", "demo", "bench", "bake")
 
 
 def __getattr__(name: str):

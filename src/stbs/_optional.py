@@ -26,6 +26,8 @@ EXTRAS = {
     "igl": ("libigl", "bench"),
     "playwright": ("playwright", "bench"),
     "pygltflib": ("pygltflib", "gltf"),
+    "dask": ("dask", "batch"),
+    "distributed": ("distributed", "batch"),
 }
 
 

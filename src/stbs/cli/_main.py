@@ -26,9 +26,11 @@ from collections.abc import Sequence
 from typing import NoReturn
 
 from .._optional import OptionalDependencyError, missing
+from . import animate as _animate
 from . import bench as _bench
 from . import deform as _deform
 from . import demo as _demo
+from . import export as _export
 from . import rig as _rig
 from . import view as _view
 from . import weights as _weights
@@ -75,7 +77,7 @@ def _add_debug(p: argparse.ArgumentParser, *, top: bool) -> None:
                    help="show the full traceback instead of a one-line error")
 
 
-COMMANDS = (_deform, _rig, _weights, _demo, _bench, _view)
+COMMANDS = (_deform, _rig, _weights, _demo, _bench, _view, _export, _animate)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -119,8 +121,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     except SystemExit as exc:  # --help, --version, usage errors
         return _code(exc)
     if args.command is None:
-        print(f"{PROG}: error: a command is required: deform, rig, weights, demo, bench, view "
-              f"or version (see '{PROG} --help')", file=sys.stderr)
+        print(f"{PROG}: error: a command is required: deform, rig, weights, demo, bench, view, "
+              f"export, animate or version (see '{PROG} --help')", file=sys.stderr)
         return 2
     prog = f"{PROG} {args.command}"
     if extra and args._cmd is not _bench:

@@ -120,7 +120,7 @@ def _check_clip(clip, rig: Rig):
 
 
 def write_gltf(path: str | os.PathLike, rig: Rig, clip: Clip | None = None,
-               bake: str | None = None) -> None:
+               bake: str | None = None, *, frames=None) -> None:
     """Write a 3D rig as glTF 2.0 (``.glb``, or ``.gltf`` with its buffer embedded).
 
     Parameters
@@ -135,6 +135,10 @@ def write_gltf(path: str | os.PathLike, rig: Rig, clip: Clip | None = None,
     bake : {"lbs", "dqs", "stbs-lbs", "stbs-dqs"}, optional
         With ``clip``: also bake that method's deformation at each sampled frame as
         morph targets played by a ``weights`` animation (then the joints stay at rest).
+    frames : sequence of (n, 3) float, keyword-only, optional
+        With ``bake``: the deformed positions at each of ``clip.sample_times()``,
+        already computed (by a :class:`stbs.Deformer` of that method); default: computed
+        here.
 
     Raises
     ------
@@ -227,10 +231,17 @@ def write_gltf(path: str | os.PathLike, rig: Rig, clip: Clip | None = None,
                                      "target": {"node": first + i, "path": path_}})
             animations.append({"name": "clip", "samplers": samplers, "channels": channels})
         else:
-            dfm = Deformer(V, sk, rig.W, rig.E, method=bake)
+            if frames is None:
+                dfm = Deformer(V, sk, rig.W, rig.E, method=bake)
+                frames = (dfm(p) for p in poses)
+            elif len(frames) != len(poses):
+                raise ValueError(f"frames must hold one mesh per sampled time ({len(poses)}), "
+                                 f"got {len(frames)}")
             targets = []
-            for p in poses:
-                U = np.asarray(dfm(p), dtype=np.float64)
+            for U in frames:
+                U = np.asarray(U, dtype=np.float64)
+                if U.shape != V.shape:
+                    raise ValueError(f"frames: each must have shape {V.shape}, got {U.shape}")
                 targets.append({"POSITION": blob.add(U - V, _FLOAT, "VEC3", target=_ARRAY,
                                                      minmax=True)})
             prim["targets"] = targets

@@ -1,0 +1,226 @@
+"""Baking an animation: a rig and a motion in, one deformed mesh per frame out.
+
+The rig's :class:`stbs.Deformer` is built once, so each frame costs the skinning only;
+the frames are written as one ``.npz`` (``U`` (k, n, d) float32), a folder of meshes,
+or a ``.glb``/``.gltf`` whose morph targets play them in any glTF viewer.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import shutil
+import tempfile
+import time
+import zipfile
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ..clip import Clip
+from ..io import atomic_open, read_bvh, read_clip, read_gltf, write_gltf, write_mesh
+from ..retargeting import retarget
+from ..rig import Rig
+from ..skinning import METHODS, Deformer
+
+__all__ = ["load_motion", "frame_times", "bake", "Baked", "MOTION_EXTENSIONS",
+           "MESH_FOLDER_FORMATS", "write_frames", "output_kind"]
+
+MOTION_EXTENSIONS = (".bvh", ".gltf", ".glb", ".json")
+MESH_FOLDER_FORMATS = (".obj", ".ply", ".off")
+
+
+def load_motion(path: str | os.PathLike, rig: Rig, *, mapping=None, twist: str = "spread",
+                stretch: str = "keep", animation: str | None = None) -> Clip:
+    """A motion file as a clip of the rig's skeleton.
+
+    ``.json``: a clip file (:func:`stbs.io.read_clip`). ``.bvh``: retargeted onto the rig
+    (:func:`stbs.retarget` with ``mapping``, ``twist``, ``stretch``). ``.gltf``/``.glb``:
+    an animation of that file (``animation`` by name; default the first), whose
+    skeleton must be the rig's (e.g. the character's own file).
+    """
+    p = Path(os.fspath(path))
+    ext = p.suffix.lower()
+    if ext not in MOTION_EXTENSIONS:
+        raise ValueError(f"motion {str(p)!r}: expected one of {', '.join(MOTION_EXTENSIONS)}")
+    if ext == ".json":
+        return read_clip(p, rig.skeleton)
+    if ext == ".bvh":
+        return retarget(read_bvh(p), rig, mapping=mapping, twist=twist, stretch=stretch)
+    _, clips = read_gltf(p)
+    if not clips:
+        raise ValueError(f"motion {str(p)!r}: the file has no animation")
+    if animation is None:
+        clip = next(iter(clips.values()))
+    elif animation in clips:
+        clip = clips[animation]
+    else:
+        raise ValueError(f"motion {str(p)!r}: no animation {animation!r}; it has "
+                         f"{', '.join(map(repr, clips))}")
+    if clip.skeleton != rig.skeleton:
+        raise ValueError(f"motion {str(p)!r}: its skeleton ({clip.skeleton!r}) is not the "
+                         f"rig's ({rig.skeleton!r}); bake a glTF character with its own "
+                         f"animations, or give a .bvh or a clip .json")
+    return clip
+
+
+_SLICE = re.compile(r"^\s*(-?\d*)\s*(?::\s*(-?\d*)\s*(?::\s*(-?\d*)\s*)?)?$")
+
+
+def frame_times(clip: Clip, *, fps: float | None = None, frames: str | None = None
+                ) -> np.ndarray:
+    """The times to bake: the clip sampled at ``fps`` (default its own), then the
+    frames ``"A:B:STEP"`` of that grid (Python slice rules, ``"A"`` alone is one frame)."""
+    times = clip.sample_times(fps)
+    if frames is None:
+        return times
+    m = _SLICE.match(str(frames))
+    if m is None or not any(m.groups()):
+        raise ValueError(f"frames must look like A:B:STEP (e.g. 0:100:2), got {frames!r}")
+    a, b, c = (int(g) if g not in (None, "") else None for g in m.groups())
+    if ":" not in str(frames):
+        if not -len(times) <= a < len(times):
+            raise ValueError(f"frames: frame {a} is outside the clip's {len(times)} frames")
+        return times[[a]]
+    if c == 0:
+        raise ValueError("frames: STEP must not be 0")
+    out = times[slice(a, b, c)]
+    if out.size == 0:
+        raise ValueError(f"frames {frames!r} selects none of the clip's {len(times)} frames")
+    return out
+
+
+def output_kind(out: str | os.PathLike) -> str:
+    """``"npz"``, ``"gltf"`` or ``"folder:.obj"`` (``.ply``, ``.off``) for an output path:
+    a folder is a path ending in ``/``, an existing folder, or a name without extension
+    (then ``.obj`` meshes)."""
+    s = os.fspath(out)
+    p = Path(s)
+    ext = p.suffix.lower()
+    if s.endswith(("/", os.sep)) or p.is_dir() or ext == "":
+        return "folder:.obj"
+    if ext == ".npz":
+        return "npz"
+    if ext in (".glb", ".gltf"):
+        return "gltf"
+    raise ValueError(f"output {s!r}: expected .npz, .glb, .gltf or a folder (of .obj meshes)")
+
+
+def _npz_bytes(arrays: dict[str, np.ndarray]) -> bytes:
+    """A deterministic .npz (fixed member dates), so equal frames make equal files."""
+    import io
+
+    buf = io.BytesIO()
+    with zipfile.ZipFile(buf, "w", compression=zipfile.ZIP_DEFLATED) as z:
+        for name, a in arrays.items():
+            member = io.BytesIO()
+            np.lib.format.write_array(member, np.asanyarray(a), allow_pickle=False)
+            info = zipfile.ZipInfo(f"{name}.npy", date_time=(1980, 1, 1, 0, 0, 0))
+            info.compress_type = zipfile.ZIP_DEFLATED
+            z.writestr(info, member.getvalue())
+    return buf.getvalue()
+
+
+def write_frames(out: str | os.PathLike, rig: Rig, clip: Clip, times: np.ndarray,
+                 frames: np.ndarray, method: str, *, mesh_format: str = ".obj") -> Path:
+    """Write baked frames (k, n, d) at ``times`` to ``out`` (see :func:`output_kind`),
+    atomically: a folder is filled under a temporary name and renamed when complete."""
+    kind = output_kind(out)
+    p = Path(os.fspath(out).rstrip("/" + os.sep))
+    frames = np.asarray(frames, dtype=np.float32)
+    if kind == "npz":
+        arrays = {"U": frames, "times": np.asarray(times, dtype=np.float64),
+                  "method": np.asarray(method)}
+        if rig.F is not None:
+            arrays["F"] = np.asarray(rig.F, dtype=np.int64)
+        if rig.T is not None:
+            arrays["T"] = np.asarray(rig.T, dtype=np.int64)
+        data = _npz_bytes(arrays)
+        with atomic_open(p, "wb") as f:
+            f.write(data)
+        return p
+    if kind == "gltf":
+        step = float(np.median(np.diff(times))) if len(times) > 1 else 1.0 / clip.fps
+        sel = Clip([(float(t), clip.pose(float(t))) for t in times], fps=1.0 / step)
+        write_gltf(p, rig, sel, bake=method, frames=list(frames))
+        return p
+    ext = mesh_format if mesh_format.startswith(".") else f".{mesh_format}"
+    if ext not in MESH_FOLDER_FORMATS:
+        raise ValueError(f"mesh format must be one of {', '.join(MESH_FOLDER_FORMATS)}, "
+                         f"got {mesh_format!r}")
+    if p.exists() and any(p.iterdir()):
+        raise ValueError(f"output folder {str(p)!r} exists and is not empty")
+    parent = p.parent if str(p.parent) else Path(".")
+    tmp = Path(tempfile.mkdtemp(prefix=f".{p.name}.", dir=parent))
+    try:
+        F = rig.F
+        width = max(5, len(str(len(frames))))
+        for k, U in enumerate(frames):
+            write_mesh(tmp / f"frame_{k:0{width}d}{ext}", U.astype(np.float64), F)
+        if p.exists():
+            p.rmdir()
+        os.replace(tmp, p)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+    return p
+
+
+@dataclass
+class Baked:
+    """What :func:`bake` did: the output, the frame count, and the seconds spent
+    skinning alone and in all (reading and writing excluded: ``total`` is the frame
+    loop, pose evaluation included)."""
+
+    path: Path
+    frames: int
+    skinning_s: float
+    total_s: float
+
+    @property
+    def fps(self) -> float:
+        return self.frames / self.total_s if self.total_s > 0 else float("inf")
+
+
+def bake(rig: Rig, clip: Clip, out: str | os.PathLike, *, method: str = "stbs-dqs",
+         fps: float | None = None, frames: str | None = None, mesh_format: str = ".obj",
+         progress: Callable[[int, int], None] | None = None, dtype=np.float32) -> Baked:
+    """Bake ``clip`` on ``rig`` with ``method`` and write the frames to ``out``.
+
+    Parameters
+    ----------
+    rig : Rig
+    clip : Clip
+        Of the rig's skeleton (e.g. :func:`load_motion`).
+    out : str or os.PathLike
+        ``.npz``, ``.glb``/``.gltf`` or a folder (see :func:`output_kind`).
+    method : {"lbs", "dqs", "stbs-lbs", "stbs-dqs"}
+    fps : float, optional
+        Sampling rate (default the clip's).
+    frames : str, optional
+        ``"A:B:STEP"`` of the sampled frames.
+    progress : callable, optional
+        ``progress(done, total)`` after each frame.
+    """
+    if method not in METHODS:
+        raise ValueError(f"method must be one of {', '.join(METHODS)}, got {method!r}")
+    if clip.skeleton != rig.skeleton:
+        raise ValueError("clip must be of the rig's skeleton")
+    output_kind(out)                                  # fail before any work
+    times = frame_times(clip, fps=fps, frames=frames)
+    dfm = Deformer(rig.V, rig.skeleton, rig.W, rig.E, method=method, dtype=dtype)
+    U = np.empty((len(times), *rig.V.shape), dtype=np.float32)
+    skin = 0.0
+    t0 = time.perf_counter()
+    for k, t in enumerate(times):
+        pose = clip.pose(float(t))
+        s = time.perf_counter()
+        U[k] = dfm(pose)
+        skin += time.perf_counter() - s
+        if progress is not None:
+            progress(k + 1, len(times))
+    total = time.perf_counter() - t0
+    path = write_frames(out, rig, clip, times, U, method, mesh_format=mesh_format)
+    return Baked(path, len(times), skin, total)
