@@ -168,9 +168,13 @@ class Clip:
             return self.keys[-1][1]
         i = int(np.searchsorted(T, t, side="right")) - 1      # T[i] <= t < T[i + 1]
         t0, p0 = self.keys[i]
-        if t == t0 or self.interpolation == "step":
-            return p0
         t1, p1 = self.keys[i + 1]
+        # on a key up to rounding (a grid k / fps against keys at k * dt): that key
+        near = 1e-9 * (t1 - t0)
+        if t - t0 <= near or self.interpolation == "step":
+            return p0
+        if t1 - t <= near:
+            return p1
         return p0.interpolate(p1, (t - t0) / (t1 - t0))
 
     def sample_times(self, fps: float | None = None) -> np.ndarray:

@@ -34,7 +34,8 @@ from .. import __version__
 from ..io import atomic_open
 from .core import _npz_bytes, frame_times, load_motion, output_kind, write_frames
 
-__all__ = ["Job", "read_manifest", "run_manifest", "BatchReport", "job_hash"]
+__all__ = ["Job", "read_manifest", "run_manifest", "BatchReport", "job_hash", "plan",
+           "local_cluster"]
 
 _KEYS = {"rig", "motion", "output", "method", "fps", "frames", "mapping", "twist",
          "stretch", "animation"}
@@ -222,6 +223,23 @@ class BatchReport:
                 f"{self.where})")
 
 
+def _timeline(job: Job, rig):
+    """A clip with the job's motion's start, end and rate, for planning the frames: for
+    a BVH the capture's frames alone (the workers retarget it), else the motion."""
+    from ..clip import Clip
+    from ..io import read_bvh
+    from ..pose import Pose
+
+    if Path(job.motion).suffix.lower() != ".bvh":
+        return load_motion(job.motion, rig, mapping=job.mapping, twist=job.twist,
+                           stretch=job.stretch, animation=job.animation)
+    m = read_bvh(job.motion)
+    rest = Pose.rest(rig.skeleton)
+    t = m.times
+    keys = [(float(t[0]), rest)] + ([(float(t[-1]), rest)] if len(t) > 1 else [])
+    return Clip(keys, fps=m.fps)
+
+
 def plan(jobs: list[Job], chunk: int):
     """The task graph (dask.delayed) of the jobs not finished yet, and their outputs."""
     import dask
@@ -237,9 +255,7 @@ def plan(jobs: list[Job], chunk: int):
             continue
         rd, md = _file_hash(job.rig), _file_hash(job.motion)
         rig = read_rig(job.rig)
-        clip = load_motion(job.motion, rig, mapping=job.mapping, twist=job.twist,
-                           stretch=job.stretch, animation=job.animation)
-        times = frame_times(clip, fps=job.fps, frames=job.frames)
+        times = frame_times(_timeline(job, rig), fps=job.fps, frames=job.frames)
         chunks = [dask.delayed(bake_chunk, pure=False)(
                       job, rd, md, times[s:s + chunk].tolist(), str(_part(job, key, c)),
                       dask_key_name=f"bake-{key}-{c}")
@@ -249,8 +265,18 @@ def plan(jobs: list[Job], chunk: int):
     return todo, skipped
 
 
+def local_cluster(workers: int):
+    """A local Dask cluster of ``workers`` processes, one thread each, quiet logs."""
+    import logging
+
+    from distributed import LocalCluster
+
+    return LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
+                        dashboard_address=None, silence_logs=logging.CRITICAL)
+
+
 def run_manifest(path: str | os.PathLike, *, workers: int | None = None,
-                 scheduler: str | None = None, chunk: int = 64) -> BatchReport:
+                 scheduler: str | None = None, chunk: int = 64, client=None) -> BatchReport:
     """Bake every job of a manifest not done yet; see the module docs.
 
     Parameters
@@ -263,6 +289,8 @@ def run_manifest(path: str | os.PathLike, *, workers: int | None = None,
         Run on the Dask cluster at this address.
     chunk : int
         Frames per task.
+    client : distributed.Client, optional
+        Run on this client's cluster (e.g. one kept for several manifests).
     """
     import dask
 
@@ -271,21 +299,23 @@ def run_manifest(path: str | os.PathLike, *, workers: int | None = None,
     todo, skipped = plan(jobs, chunk)
     report = BatchReport(skipped=skipped)
     results: list[dict[str, Any]] = []
-    if todo:
+    if todo and client is not None:
+        results = client.gather(client.compute(todo))
+        report.where = "the given cluster"
+    elif todo:
         if workers is None and scheduler is None:
             # one task at a time in this process: the Deformer itself uses every core
             results = list(dask.compute(*todo, scheduler="synchronous"))
         else:
-            from distributed import Client, LocalCluster
+            from distributed import Client
 
             if scheduler is not None:
-                with Client(scheduler) as client:
-                    results = client.gather(client.compute(todo))
+                with Client(scheduler) as c:
+                    results = c.gather(c.compute(todo))
                 report.where = f"cluster {scheduler}"
             else:
-                with LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
-                                  dashboard_address=None) as cluster, Client(cluster) as client:
-                    results = client.gather(client.compute(todo))
+                with local_cluster(workers) as cluster, Client(cluster) as c:
+                    results = c.gather(c.compute(todo))
                 report.where = f"{workers} local workers"
     report.wall_s = time.perf_counter() - t0
     for r in results:

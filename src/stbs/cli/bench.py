@@ -56,6 +56,14 @@ VIEWER_EPILOG = ("examples:\n  stbs bench --viewer\n"
                  "  stbs bench --viewer --gpu --browser /usr/bin/chromium")
 
 
+ANIMATE_DESCRIPTION = (
+    "Time baking (stbs animate): frames per second of each skinning method on a synthetic "
+    "arm and motion, in this process and on a local Dask cluster, beside plain Deformer "
+    "calls in the same run (the options below come from stbs.bench.animate).")
+ANIMATE_EPILOG = ("examples:\n  stbs bench --animate\n"
+                  "  stbs bench --animate --vertices 100000 --workers 0 --json bake.json")
+
+
 def _wants(argv: Sequence[str], flag: str) -> bool:
     args = list(argv)
     if "--" in args:
@@ -74,14 +82,19 @@ def run_delegated(argv: Sequence[str], *, debug: bool,
     ``--viewer`` is, else :mod:`stbs.bench` (the names of :mod:`stbs.bench.skinning`).
     A module's ``requires(args)`` (optional import names) is checked first."""
     weights, viewer = _wants_weights(argv), _wants(argv, "--viewer")
-    if weights and viewer:
-        raise CommandError("--weights and --viewer: give one of them (two benchmarks)")
+    animate = _wants(argv, "--animate")
+    if weights + viewer + animate > 1:
+        raise CommandError("--weights, --viewer and --animate are three benchmarks: give "
+                           "one of them")
     # stbs.bench is the skinning benchmark's API (stbs.bench.skinning's names)
     bench = _module("stbs.bench.weights" if weights else
-                    "stbs.bench.viewer" if viewer else "stbs.bench")
-    epilog = VIEWER_EPILOG if viewer else EPILOG
+                    "stbs.bench.viewer" if viewer else
+                    "stbs.bench.animate" if animate else "stbs.bench")
+    epilog = VIEWER_EPILOG if viewer else ANIMATE_EPILOG if animate else EPILOG
     description = (WEIGHTS_DESCRIPTION if weights else
-                   VIEWER_DESCRIPTION if viewer else DESCRIPTION)
+                   VIEWER_DESCRIPTION if viewer else
+                   ANIMATE_DESCRIPTION if animate else DESCRIPTION)
+    viewer = viewer or animate          # neither adds the skinning benchmark's flags below
     if weights:
         cases = getattr(bench, "CASES", {})
         epilog = "cases:\n" + "".join(f"  {c.name:<10} {c.about}\n" for c in cases.values())
@@ -100,6 +113,11 @@ def run_delegated(argv: Sequence[str], *, debug: bool,
         p.add_argument("--viewer", action="store_true",
                        help="time the viewer's page in headless Chromium instead "
                             "(its options: stbs bench --viewer --help)")
+    if not weights and not viewer and not any("--animate" in a.option_strings
+                                              for a in p._actions):
+        p.add_argument("--animate", action="store_true",
+                       help="time baking animations instead "
+                            "(its options: stbs bench --animate --help)")
     if not any("--debug" in a.option_strings for a in p._actions):
         p.add_argument("--debug", action="store_true", default=argparse.SUPPRESS,
                        help="show the full traceback instead of a one-line error")
