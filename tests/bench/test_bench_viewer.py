@@ -129,11 +129,36 @@ def test_missing_chromium_or_playwright_is_one_line_and_exit_2(capsys, tmp_path,
     assert "playwright" in err and "stbs-skinning[bench]" in err
 
 
+def test_unbuilt_or_broken_pages_are_one_line_and_exit_2(capsys, tmp_path, monkeypatch,
+                                                         browser_path):
+    import stbs.viewer.server
+
+    (tmp_path / "index.html").write_text('<!doctype html><script type="module" '
+                                         'src="/static/viewer.js"></script>')
+    monkeypatch.setattr(stbs.viewer, "STATIC_DIR", tmp_path)
+    monkeypatch.setattr(stbs.viewer.server, "STATIC_DIR", tmp_path)
+    code, out, err = run(capsys, "bench", "--viewer", "--sizes", "1k", "--frames", "1")
+    assert code == 2 and out == "" and err.count("\n") == 1
+    assert "viewer.js, three-lbs.js are not built" in err and str(tmp_path) in err
+    # built, but the page cannot start (as without WebGL2): its error, in one line
+    (tmp_path / "viewer.js").write_text(
+        'window.stbsViewer = { ready: Promise.reject(new Error("WebGL2 is required")) };')
+    (tmp_path / "three-lbs.js").write_text("")
+    code, out, err = run(capsys, "bench", "--viewer", "--sizes", "1k", "--frames", "1",
+                         "--browser", browser_path)
+    # after the progress lines, the error in one line
+    errors = [ln for ln in err.splitlines() if "error:" in ln]
+    assert code == 2 and out == "" and errors == [err.splitlines()[-1]], err
+    assert errors[0].startswith("stbs bench: error: http://127.0.0.1:")
+    assert "the page did not start in Chromium" in err and "WebGL2 is required" in err
+
+
 def test_bad_options_are_one_line_and_exit_2(capsys):
     code, out, err = run(capsys, "bench", "--viewer", "--methods", "lbs,three-dqs")
     assert code == 2 and err.count("\n") == 1 and "three-dqs" in err and out == ""
     code, out, err = run(capsys, "bench", "--viewer", "--weights")
-    assert code == 2 and err.count("\n") == 1 and "--weights and --viewer" in err
+    assert code == 2 and err.count("\n") == 1 and out == ""
+    assert "--weights" in err and "--viewer" in err and "give one of them" in err
 
 
 # --------------------------------------------------------------------------- the peer

@@ -64,7 +64,8 @@ from .report import (
 from .skinning import _choice_list, _parse_sizes
 
 __all__ = ["PEER", "VIEWER_METHODS", "DEFAULT_SIZES", "CANVAS", "WARMUP", "ROUNDS", "BONES",
-           "SWIFTSHADER_ARGS", "GPU_ARGS", "default_browser", "tube_rig", "bench_pose",
+           "SWIFTSHADER_ARGS", "GPU_ARGS", "BUNDLES", "default_browser", "check_browser",
+           "check_bundles", "tube_rig", "bench_pose",
            "auto_frames", "ViewerBench", "run_bench", "format_table", "add_arguments",
            "requires", "collect", "run", "main"]
 
@@ -79,6 +80,8 @@ CANVAS: tuple[int, int] = (1280, 720)
 WARMUP = 2
 #: The timed frames of a method are split into up to this many rounds over the methods.
 ROUNDS = 5
+#: The pages' scripts (in the viewer's static folder), built from ``viewer/``.
+BUNDLES: tuple[str, ...] = ("viewer.js", "three-lbs.js")
 #: Bones in the tube's chain.
 BONES = 20
 #: Chromium's options by default: WebGL2 through ANGLE on SwiftShader (the CPU).
@@ -294,12 +297,21 @@ class ViewerBench:
 
     def open(self, url: str, api: str):
         """A new page at ``url``, waited on until ``window.<api>.ready`` resolves."""
+        from playwright.sync_api import Error
+
         page = self._context.new_page()
         page.on("console", lambda m: m.type == "error" and self.errors.append(m.text))
         page.on("pageerror", lambda e: self.errors.append(str(e)))
-        page.goto(url)
-        page.wait_for_function(f"window.{api} !== undefined")
-        page.evaluate(_READY.format(api=api), self.timeout_s)
+        try:
+            page.goto(url)
+            page.wait_for_function(f"window.{api} !== undefined")
+            page.evaluate(_READY.format(api=api), self.timeout_s)
+        except Error as exc:
+            page.close()
+            where = url.split("?", 1)[0]
+            first = next((ln for ln in str(exc).splitlines() if ln.strip()), "")
+            raise OptionalDependencyError(f"{where}: the page did not start in Chromium "
+                                          f"({first.strip()})") from None
         return page
 
     def renderer(self, page) -> str:
@@ -314,6 +326,21 @@ def check_browser(path: str) -> None:
         raise OptionalDependencyError(
             f"stbs bench --viewer needs Chromium: {path} is not an executable file (install "
             "it, e.g. apt-get install chromium, or give --browser PATH or STBS_CHROMIUM)")
+
+
+def check_bundles(static_dir: str | os.PathLike | None = None) -> None:
+    """Raise :class:`OptionalDependencyError` unless the viewer's page and the peer's
+    are built (``viewer.js`` and ``three-lbs.js`` in ``static_dir``, default the
+    package's static folder)."""
+    from ..viewer import STATIC_DIR
+
+    folder = Path(STATIC_DIR if static_dir is None else static_dir)
+    lacking = [b for b in BUNDLES if not (folder / b).is_file()]
+    if lacking:
+        raise OptionalDependencyError(
+            f"stbs bench --viewer needs the pages' scripts, but {', '.join(lacking)} "
+            f"{'is' if len(lacking) == 1 else 'are'} not built in {folder} (in a source "
+            "checkout: npm ci --prefix viewer && npm run --prefix viewer build)")
 
 
 def _time(page, api: str, method: str, frames: int) -> float:
@@ -533,6 +560,7 @@ def run(args: argparse.Namespace) -> int:
     """
     out = check_json_path(args.json)
     check_browser(args.browser or default_browser())
+    check_bundles()
 
     def log(msg: str) -> None:
         print(f"stbs bench --viewer: {msg}", file=sys.stderr, flush=True)
