@@ -110,8 +110,7 @@ def tube_rig(n: int, *, bones: int = BONES, seed: int = 0) -> Rig:
     ``sqrt(n / 4.5)``, at least 8) are spaced along x so that the quads are roughly
     square, and the last ring is cut short to give ``n`` vertices (faces that would
     use a missing vertex are left out). Vertex positions are jittered by 1% of the
-    ring spacing (``seed``), so that no two rigs of a size differ but every run of
-    one is the same.
+    ring spacing, seeded by ``seed``, so every run builds the same rig.
 
     Weights, without BBW: bone i spans ``[i l, (i+1) l]`` on x (``l = 10 / bones``);
     a vertex at distance ``d_i`` (along x) from bone i gets ``exp(-(d_i / l)^2)`` on
