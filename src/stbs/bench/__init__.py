@@ -3,7 +3,10 @@
 - :mod:`stbs.bench.skinning`: throughput of the four skinning methods per vertex,
   beside a NumPy and a SciPy LBS timed the same way in the same run (``stbs bench``);
 - :mod:`stbs.bench.weights`: our bounded biharmonic weights on built-in meshes and a
-  complete rig through :func:`stbs.build_rig` (``stbs bench --weights``).
+  complete rig through :func:`stbs.build_rig` (``stbs bench --weights``);
+- :mod:`stbs.bench.viewer`: the viewer's frame time in headless Chromium beside
+  three.js's ``SkinnedMesh`` (``stbs bench --viewer``; needs Playwright and Chromium,
+  imported only when it runs).
 
 The names below are :mod:`stbs.bench.skinning`'s, for scripts that add their own peers
 (the source tree's ``benchmarks/`` times libigl's this way). Nothing here touches the
