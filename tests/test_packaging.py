@@ -43,6 +43,7 @@ INSTALLS_ON_BOOKWORM = {
     "pygltflib": "1.16.5",   # pure Python; the earlier 1.16 releases are sdists only
     "dask": "2024.8",        # pure Python
     "distributed": "2024.8",
+    "usd-core": "26.11",     # the release tested (its UsdValidation checks the files)
 }
 # Known not to install there; the reason is the failure message.
 NOT_ON_BOOKWORM = {

@@ -28,6 +28,7 @@ EXTRAS = {
     "pygltflib": ("pygltflib", "gltf"),
     "dask": ("dask", "batch"),
     "distributed": ("distributed", "batch"),
+    "pxr": ("usd-core", "usd"),
 }
 
 

@@ -27,6 +27,7 @@ function               formats
 :func:`read_bvh`       .bvh motion capture -> :class:`stbs.Motion`
 :func:`read_gltf`      .gltf .glb skinned mesh and animations -> rig, clips
 :func:`write_gltf`     .gltf .glb skin (+ endpoint weights), clip, baked morph targets
+:func:`write_usd`      .usda .usdc .usd: UsdSkel rig, clip, baked points cache
 :func:`read_rig`       .npz .gltf .glb -> :class:`stbs.Rig`
 :func:`write_rig`      .npz .gltf .glb (a glTF character keeps its file, plus E)
 :func:`read_polygons`  .poly (Triangle's planar straight-line graph) -> polygons
@@ -48,6 +49,7 @@ from .pose import pose_to_dict, read_pose, write_pose
 from .rig import RIG_VERSION, load_rig, save_rig
 from .skeleton_file import SKELETON_READ_EXTENSIONS, read_skeleton
 from .tgf import read_tgf, write_tgf
+from .usd import USD_EXTENSIONS, write_usd
 from .weights import WEIGHT_READ_EXTENSIONS, read_weights
 
 __all__ = [
@@ -59,6 +61,6 @@ __all__ = [
     "save_rig", "load_rig", "RIG_VERSION", "read_pose", "write_pose", "pose_to_dict",
     "read_clip", "write_clip", "clip_to_dict",
     "read_polygons", "read_bvh", "read_gltf", "write_gltf", "GLTF_EXTENSIONS",
-    "read_rig", "write_rig", "RIG_EXTENSIONS",
+    "read_rig", "write_rig", "RIG_EXTENSIONS", "write_usd", "USD_EXTENSIONS",
     "atomic_open", "atomic_save", "atomic_write",
 ]
