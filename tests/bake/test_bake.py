@@ -112,4 +112,5 @@ def test_stbs_export(tmp_path, rig, capsys):
     capsys.readouterr()
     assert main(["export", str(rig_path), "--bake", "lbs", "-o", str(tmp_path / "c.glb")]) == 2
     assert "--bake needs --clip" in capsys.readouterr().err
-    assert main(["export", str(rig_path), "-o", str(tmp_path / "c.usd")]) == 2
+    assert main(["export", str(rig_path), "-o", str(tmp_path / "c.obj")]) == 2
+    assert "expected .glb, .gltf, .usda, .usdc or .usd" in capsys.readouterr().err
