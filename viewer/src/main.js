@@ -159,6 +159,10 @@ class Viewer {
       vertexShader: MESH_VERTEX,
       fragmentShader: MESH_FRAGMENT,
       side: THREE.DoubleSide,
+      // 2D: no depth test, so parts that fold over each other overlap in the triangles'
+      // order instead of fighting over one depth (z = 0 everywhere)
+      depthTest: dim === 3,
+      depthWrite: dim === 3,
       uniforms: {
         uBones: { value: this.boneTexture },
         uMethod: { value: this.methodIndex },

@@ -182,7 +182,7 @@ void main() {
   stbsSkin(position, normal, stbsIndex, stbsWeight, stbsEnd, P, N);
   vTint = vec3(0.0);
   for (int k = 0; k < 4; k++) vTint += stbsWeight[k] * boneHue(stbsIndex[k]);
-  if (uColorMode == 2) vTint = stbsSel.x > 0.0 ? stbsHeat(stbsSel.y) : vec3(0.5);
+  if (uColorMode == 2) vTint = stbsSel.x > 1e-7 ? stbsHeat(stbsSel.y) : vec3(0.5);   // 1e-7: "zero" bone weight (paper §3)
   vColorMode = float(uColorMode);
   vUv = uv;
   vec4 mv = modelViewMatrix * vec4(P, 1.0);
