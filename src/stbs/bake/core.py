@@ -109,16 +109,18 @@ def output_kind(out: str | os.PathLike) -> str:
 
 
 def _npz_bytes(arrays: dict[str, np.ndarray]) -> bytes:
-    """A deterministic .npz (fixed member dates), so equal frames make equal files."""
+    """A deterministic .npz (fixed member dates), so equal frames make equal files;
+    stored, not deflated: float frames barely compress, and deflating them costs more
+    than baking them."""
     import io
 
     buf = io.BytesIO()
-    with zipfile.ZipFile(buf, "w", compression=zipfile.ZIP_DEFLATED) as z:
+    with zipfile.ZipFile(buf, "w", compression=zipfile.ZIP_STORED) as z:
         for name, a in arrays.items():
             member = io.BytesIO()
             np.lib.format.write_array(member, np.asanyarray(a), allow_pickle=False)
             info = zipfile.ZipInfo(f"{name}.npy", date_time=(1980, 1, 1, 0, 0, 0))
-            info.compress_type = zipfile.ZIP_DEFLATED
+            info.compress_type = zipfile.ZIP_STORED
             z.writestr(info, member.getvalue())
     return buf.getvalue()
 
