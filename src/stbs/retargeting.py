@@ -25,6 +25,7 @@ from __future__ import annotations
 import json
 import os
 import re
+import warnings
 from collections.abc import Mapping
 from typing import Any, Literal
 
@@ -209,6 +210,12 @@ def retarget(motion: Motion, rig, *, mapping=None,
     ValueError
         A 2D rig, a bad choice, no bone matched, or a mapping naming a bone or joint
         that does not exist (the message lists the names there are).
+
+    Warns
+    -----
+    UserWarning
+        Matching by name left some rig bones without a joint (they follow their
+        parents); the warning names them.
     """
     if not isinstance(motion, Motion):
         raise TypeError(f"motion must be a stbs.Motion, got {type(motion).__name__}")
@@ -226,6 +233,11 @@ def retarget(motion: Motion, rig, *, mapping=None,
         raise ValueError(f"no bone of the rig matches a joint of the motion by name; rig "
                          f"bones: {', '.join(sk.names)}; motion joints: "
                          f"{', '.join(motion.names)} (give a mapping)")
+    if mapping is None and (src < 0).any():
+        lost = [sk.names[i] for i in np.flatnonzero(src < 0)]
+        warnings.warn(f"retarget: {len(lost)} rig bones match no joint of the motion by "
+                      f"name and follow their parents: {', '.join(lost)} (a mapping names "
+                      f"their joints)", UserWarning, stacklevel=2)
     f, b = motion.n_frames, sk.n_bones
     Rg, tg = motion.global_transforms()
     # world rotation of each bone relative to the rest pose (motion rest: identity)

@@ -133,6 +133,12 @@ def test_mapping_and_errors(tmp_path):
     p.write_text('{"a": "shoulder", "b": "elbow", "c": "wrist"}')
     c2 = retarget(m, sk, mapping=p)
     np.testing.assert_array_equal(c2.keys[1][1].twist, c.keys[1][1].twist)
+    # by name, a bone without a joint is named in a warning and follows its parent
+    sk4 = stbs.Skeleton(C + [[8, 0, 0]], [[0, 1], [1, 2], [2, 3], [3, 4]],
+                        names=["shoulder", "elbow", "wrist", "finger"])
+    with pytest.warns(UserWarning, match="1 rig bones match no joint .*: finger"):
+        c4 = retarget(m, sk4)
+    np.testing.assert_allclose(c4.keys[1][1].rotations[3], c4.keys[1][1].rotations[2])
     # "c" follows its parent when unmapped: no roll reaches the forearm then
     c3 = retarget(m, sk, mapping={"a": "shoulder", "b": "elbow", "c": None})
     assert not c3.keys[1][1].twist.any()

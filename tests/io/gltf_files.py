@@ -22,6 +22,9 @@ def quat_xyzw(axis, deg):
 
 
 def trs_matrix(t=(0, 0, 0), r=(0, 0, 0, 1), s=(1, 1, 1)):
+    """4x4 of a node's TRS; the quaternion (x, y, z, w) normalised first, as viewers do
+    (files round their quaternions: Khronos' SimpleSkin stores 0.707 for sqrt(1/2))."""
+    r = np.asarray(r, float) / np.linalg.norm(r)
     x, y, z, w = r
     R = np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
                   [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],

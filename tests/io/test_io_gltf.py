@@ -275,3 +275,67 @@ def test_several_skinned_meshes_are_listed(tmp_path):
 def test_a_missing_file(tmp_path):
     with pytest.raises(FileNotFoundError):
         read_gltf(tmp_path / "none.glb")
+
+
+# ---------------------------------------------------------------- the shared files
+def _raw_gltf(path):
+    """(JSON, buffers) of a .glb or a .gltf with data: URIs, read without stbs."""
+    import base64
+    import struct
+
+    data = path.read_bytes()
+    if path.suffix == ".glb":
+        n = struct.unpack_from("<I", data, 12)[0]
+        doc = json.loads(data[20:20 + n])
+        m = struct.unpack_from("<I", data, 20 + n)[0]
+        return doc, [data[28 + n:28 + n + m]]
+    doc = json.loads(data)
+    return doc, [base64.b64decode(b["uri"].split(",", 1)[1]) for b in doc["buffers"]]
+
+
+def _raw_accessor(doc, bufs, i):
+    a = doc["accessors"][i]
+    bv = doc["bufferViews"][a["bufferView"]]
+    dt = {5126: "<f4", 5123: "<u2", 5121: "u1"}[a["componentType"]]
+    nc = {"SCALAR": 1, "VEC3": 3, "VEC4": 4, "MAT4": 16}[a["type"]]
+    item = np.dtype(dt).itemsize
+    stride = bv.get("byteStride", nc * item)
+    start = bv.get("byteOffset", 0) + a.get("byteOffset", 0)
+    rows = [np.frombuffer(bufs[bv["buffer"]], dtype=dt, count=nc, offset=start + k * stride)
+            for k in range(a["count"])]
+    x = np.array(rows, dtype=float)
+    if a.get("normalized"):
+        x /= {"<u2": 65535.0, "u1": 255.0}[dt]
+    return x
+
+
+@pytest.mark.parametrize("name", ["RiggedSimple.glb", "SimpleSkin.gltf"])
+def test_the_shared_files_skin_as_the_formula_says(shared_data, name):
+    path = shared_data / "gltf" / name
+    doc, bufs = _raw_gltf(path)
+    nodes = doc["nodes"]
+    node = next(k for k, n in enumerate(nodes) if "skin" in n)
+    skin = doc["skins"][nodes[node]["skin"]]
+    prim = doc["meshes"][nodes[node]["mesh"]]["primitives"][0]
+    V = _raw_accessor(doc, bufs, prim["attributes"]["POSITION"])
+    J = _raw_accessor(doc, bufs, prim["attributes"]["JOINTS_0"]).astype(int)
+    Wt = _raw_accessor(doc, bufs, prim["attributes"]["WEIGHTS_0"])
+    IBM = _raw_accessor(doc, bufs, skin["inverseBindMatrices"]).reshape(-1, 4, 4)
+    IBM = IBM.transpose(0, 2, 1)
+    anim = doc["animations"][0]
+    rig, clips = read_gltf(path)
+    clip = next(iter(clips.values()))
+    diag = float(np.linalg.norm(np.ptp(V, axis=0)))
+    for k, (t, pose) in enumerate(clip.keys):
+        over: dict = {}
+        for ch in anim["channels"]:
+            s = anim["samplers"][ch["sampler"]]
+            times = _raw_accessor(doc, bufs, s["input"])[:, 0]
+            assert abs(times[k] - t) < 1e-6            # every channel keyed at the same times
+            over.setdefault(ch["target"]["node"], {})[ch["target"]["path"]] = \
+                _raw_accessor(doc, bufs, s["output"])[k]
+        G = node_globals(nodes, local_matrices(nodes, over))
+        ref = skin_formula(V, [(J, Wt)], G, skin["joints"], IBM)
+        U = stbs.deform(rig.V, rig.skeleton, pose, rig.W, method="lbs")
+        assert np.abs(U - ref).max() <= 1e-5 * diag, (k, np.abs(U - ref).max())
+    assert len(clip.keys) == doc["accessors"][anim["samplers"][0]["input"]]["count"]

@@ -118,6 +118,17 @@ def _write_bvh(path: Path, motion) -> None:
     path.write_text("\n".join(lines) + "\n")
 
 
+def _worker_counts(text: str) -> tuple[int, ...]:
+    try:
+        counts = tuple(int(t) for t in str(text).split(",") if t.strip())
+    except ValueError:
+        counts = ()
+    if not counts or any(c < 0 for c in counts):
+        raise argparse.ArgumentTypeError(f"expected worker counts like 1,2 (0: none), got "
+                                         f"{text!r}")
+    return tuple(c for c in counts if c > 0)
+
+
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--animate", action="store_true", required=True,
                         help="time baking (this benchmark)")
@@ -127,16 +138,16 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="frames of the motion (default 300)")
     parser.add_argument("--repeat", type=int_at_least(1), default=5,
                         help="in-process rounds, each timing every method (default 5)")
-    parser.add_argument("--workers", type=int_at_least(0), default=2,
-                        help="also bake on a local cluster of this many processes; 0: "
-                             "in-process only (default 2)")
+    parser.add_argument("--workers", type=_worker_counts, default=(1, 2),
+                        help="also bake on local clusters of these many processes, "
+                             "comma-separated; 0: in-process only (default 1,2)")
     parser.add_argument("--json", metavar="OUT.json", default=None,
                         help='also write {"animate": [{"vertices", "method", "mode", '
                              '"frames", "frames_per_s", "overhead"}, ...]}')
 
 
 def requires(args: argparse.Namespace) -> list[str]:
-    return ["dask", "distributed"] if args.workers else []
+    return ["dask", "distributed"] if any(args.workers) else []
 
 
 def collect(args: argparse.Namespace, *, log=lambda msg: None) -> dict:
@@ -181,11 +192,9 @@ def collect(args: argparse.Namespace, *, log=lambda msg: None) -> dict:
 
             save_rig(tmp / "arm.npz", rig)
             _write_bvh(tmp / "motion.bvh", motion)
-            (tmp / "out").mkdir()
-            chunk = max(1, len(poses) // (4 * args.workers))
 
             def manifest(name: str, m: str, frames: str | None = None) -> Path:
-                job = {"rig": "arm.npz", "motion": "motion.bvh", "output": f"out/{name}.npz",
+                job = {"rig": "arm.npz", "motion": "motion.bvh", "output": f"{name}.npz",
                        "method": m}
                 if frames:
                     job["frames"] = frames
@@ -193,18 +202,22 @@ def collect(args: argparse.Namespace, *, log=lambda msg: None) -> dict:
                 man.write_text(json.dumps([job]))
                 return man
 
-            t0 = time.perf_counter()
-            with local_cluster(args.workers) as cluster, Client(cluster) as client:
-                started = time.perf_counter() - t0
-                for m in METHODS:      # warm the workers: imports, compiled kernels, rig
-                    run_manifest(manifest(f"warm-{m}", m, "0:2"), chunk=1, client=client)
-                log(f"{args.workers} workers started in {started:.1f} s and warmed")
-                for m in METHODS:
-                    rep = run_manifest(manifest(m, m), chunk=chunk, client=client)
-                    rows.append({"vertices": n, "method": m, "mode": f"workers-{args.workers}",
-                                 "frames": rep.frames, "frames_per_s": rep.frames / rep.wall_s,
-                                 "overhead": None, "cluster_start_s": started})
-                    log(f"{m} on {args.workers} workers: {rep.wall_s:.2f} s")
+            for w in args.workers:
+                chunk = max(1, len(poses) // (4 * w))
+                t0 = time.perf_counter()
+                with local_cluster(w) as cluster, Client(cluster) as client:
+                    started = time.perf_counter() - t0
+                    for m in METHODS:   # warm the workers: imports, compiled kernels, rig
+                        run_manifest(manifest(f"warm-{w}-{m}", m, "0:2"), chunk=1,
+                                     client=client)
+                    log(f"{w} workers started in {started:.1f} s and warmed")
+                    for m in METHODS:
+                        rep = run_manifest(manifest(f"{w}-{m}", m), chunk=chunk, client=client)
+                        rows.append({"vertices": n, "method": m, "mode": f"workers-{w}",
+                                     "frames": rep.frames,
+                                     "frames_per_s": rep.frames / rep.wall_s,
+                                     "overhead": None, "cluster_start_s": started})
+                        log(f"{m} on {w} workers: {rep.wall_s:.2f} s")
     machine = {"cpu": cpu_model(), "cpus": os.cpu_count(), "platform": platform_name(),
                "load_average": load_average()}
     return {"animate": rows, "machine": machine}
