@@ -248,3 +248,38 @@ def forward_kinematics(sk: Skeleton, rotations=None, stretch=None, twist=None,
             origins[i] = origins[p] + sigma[p] * (R[p] @ vec[p])
         G[i] = R[i] @ K[i] if d == 3 else R[i]
     return Pose(sk, rotations=R, origins=origins, stretch=sigma, twist=theta)
+
+
+def local_transforms(sk: Skeleton, rotations, origins=None):
+    """Each bone's rotation, and posed start, in its parent bone's frame: the joint
+    transforms of a scene graph (glTF nodes, USD joints) that give these world poses.
+
+    Parameters
+    ----------
+    sk : Skeleton
+    rotations : (..., b, d, d) float
+        World rotations ``R_i`` (e.g. ``Pose.rotations``, or a stack of them).
+    origins : (..., b, d) float, optional
+        Posed starts ``a'_i``.
+
+    Returns
+    -------
+    local_rotations : (..., b, d, d)
+        ``R_p^T R_i`` (``R_i`` for a root).
+    local_origins : (..., b, d), only with ``origins``
+        ``R_p^T (a'_i - a'_p)`` (``a'_i`` for a root).
+    """
+    R = np.asarray(rotations, dtype=float)
+    par = sk.parents
+    has = par >= 0
+    LR = R.copy()
+    LR[..., has, :, :] = np.einsum("...bji,...bjk->...bik", R[..., par[has], :, :],
+                                   R[..., has, :, :])
+    if origins is None:
+        return LR
+    O = np.asarray(origins, dtype=float)
+    LT = O.copy()
+    LT[..., has, :] = np.einsum("...bji,...bj->...bi", R[..., par[has], :, :],
+                                O[..., has, :] - O[..., par[has], :])
+    return LR, LT
+

@@ -34,7 +34,7 @@ import numpy as np
 from . import transforms as tf
 from .clip import Clip
 from .motion import Motion
-from .pose import forward_kinematics
+from .pose import forward_kinematics, local_transforms
 from .skeleton import Skeleton
 
 __all__ = ["retarget", "ALIASES"]
@@ -250,9 +250,8 @@ def retarget(motion: Motion, rig, *, mapping=None,
             D[:, i] = D[:, p]
         else:
             D[:, i] = np.eye(3)
-    L = D.copy()
+    L = local_transforms(sk, D)
     has_p = sk.parents >= 0
-    L[:, has_p] = np.einsum("fbji,fbjk->fbik", D[:, sk.parents[has_p]], D[:, has_p])
     tau = np.zeros((f, sk.n_joints))
     if twist == "spread":
         starts = np.bincount(sk.BE[:, 0], minlength=sk.n_joints)

@@ -98,7 +98,11 @@ def _big_manifest(folder, inputs, frames=240):
 
 
 def _parts(folder):
-    return sorted(p for p in (folder / "out").iterdir() if ".part" in p.name)
+    """The finished part files (not a writer's temporary file of one)."""
+    import re
+
+    part = re.compile(r"^\.long-[0-9a-f]{16}\.part\d{5}\.npz$")
+    return sorted(p for p in (folder / "out").iterdir() if part.match(p.name))
 
 
 def test_a_killed_run_loses_and_duplicates_nothing(tmp_path, inputs):

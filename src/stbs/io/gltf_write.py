@@ -34,6 +34,7 @@ import numpy as np
 from .. import transforms as tf
 from ..clip import Clip
 from ..geometry import boundary_faces, vertex_normals
+from ..pose import local_transforms
 from ..rig.model import Rig
 from ..skinning import METHODS, Deformer, top_k
 from ._atomic import atomic_open
@@ -210,13 +211,7 @@ def write_gltf(path: str | os.PathLike, rig: Rig, clip: Clip | None = None,
         if bake is None:
             R = np.array([p.rotations for p in poses])          # (k, b, 3, 3) world
             O = np.array([p.origins for p in poses])            # (k, b, 3)
-            par = sk.parents
-            local_R = R.copy()
-            local_t = O.copy()
-            has = par >= 0
-            local_R[:, has] = np.einsum("kbji,kbjl->kbil", R[:, par[has]], R[:, has])
-            local_t[:, has] = np.einsum("kbji,kbj->kbi", R[:, par[has]],
-                                        O[:, has] - O[:, par[has]])
+            local_R, local_t = local_transforms(sk, R, O)
             quat = _quat_xyzw(local_R)
             # keep consecutive keys on the same hemisphere so viewers slerp the short way
             for k in range(1, len(times)):

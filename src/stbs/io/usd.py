@@ -30,6 +30,7 @@ from .. import transforms as tf
 from .._optional import require
 from ..clip import Clip
 from ..geometry import boundary_faces
+from ..pose import local_transforms
 from ..rig.model import Rig
 from ..skinning import METHODS, Deformer, top_k
 from ._atomic import atomic_save
@@ -159,11 +160,7 @@ def _write(tmp: str, rig: Rig, F: np.ndarray, clip, bake, skinning) -> None:
         anim.CreateJointsAttr(Vt.TokenArray(joints))
         R = np.array([p.rotations for p in poses])
         O = np.array([p.origins for p in poses])
-        par = sk.parents
-        has = par >= 0
-        LR, LT = R.copy(), O.copy()
-        LR[:, has] = np.einsum("kbji,kbjl->kbil", R[:, par[has]], R[:, has])
-        LT[:, has] = np.einsum("kbji,kbj->kbi", R[:, par[has]], O[:, has] - O[:, par[has]])
+        LR, LT = local_transforms(sk, R, O)
         q = tf.matrix_to_quat(LR)                        # (w, x, y, z)
         rot, tra, sca = (anim.CreateRotationsAttr(), anim.CreateTranslationsAttr(),
                          anim.CreateScalesAttr())
