@@ -346,19 +346,13 @@ class ViewerServer:
                                 "(start stbs view with --save-as PATH)")
         folder = self.pose_folder
         with self._lock:
-            if name is None:
-                name = next((f"{self.name}-pose-{k:03d}.json" for k in range(1, 1000)
-                             if not os.path.lexists(folder / f"{self.name}-pose-{k:03d}.json")),
-                            None)
-                if name is None:
-                    raise _Refused(409, f"{self.name}-pose-001.json .. -999.json all exist in "
-                                        f"{str(folder)!r}; give a name")
-            target = folder / name
-            if os.path.islink(target) or (os.path.lexists(target) and not target.is_file()):
-                raise _Refused(403, f"{name!r}: exists and is not a plain file; not replaced")
-            if target.exists() and not overwrite:
-                raise _Refused(409, f"{name!r} exists in {str(folder)!r}; send "
-                                    '"overwrite": true to replace it')
+            try:
+                target = clips.target_in(folder, name, default_stem=f"{self.name}-pose",
+                                         pattern=POSE_NAME, suffix=".json",
+                                         overwrite=overwrite)
+            except clips.Refusal as r:
+                raise _Refused(r.status, r.message) from None
+            name = target.name
             try:
                 write_pose(target, pose)
             except OSError as exc:
