@@ -39,7 +39,7 @@ $(VIEWER_JS): viewer/node_modules/.package-lock.json \
 	viewer/node_modules/.bin/esbuild viewer/src/main.js --bundle --format=esm \
 	  --target=es2020 --minify --log-level=warning --outfile=$@
 
-$(THREE_LBS_JS): viewer/node_modules/.package-lock.json viewer/src/three_lbs.js
+$(THREE_LBS_JS): viewer/node_modules/.package-lock.json viewer/src/three_lbs.js viewer/src/timing.js
 	viewer/node_modules/.bin/esbuild viewer/src/three_lbs.js --bundle --format=esm \
 	  --target=es2020 --minify --log-level=warning --outfile=$@
 

@@ -5,6 +5,7 @@
 import * as THREE from "three";
 import { OrbitControls } from "three/examples/jsm/controls/OrbitControls.js";
 import { SkinFeedback } from "./feedback.js";
+import { timeFrames } from "./timing.js";
 import { packBones, posedSegments, restFrames } from "./pose.js";
 import { PoseEditor } from "./edit.js";
 import { WeightEditor } from "./paint.js";
@@ -76,11 +77,6 @@ function restNormals(P, F, dim) {
     else out[3 * v + 2] = 1;
   }
   return out;
-}
-
-function median(xs) {
-  const s = [...xs].sort((a, b) => a - b), m = s.length >> 1;
-  return s.length % 2 ? s[m] : 0.5 * (s[m - 1] + s[m]);
 }
 
 function status(text, isError = false) {
@@ -457,17 +453,11 @@ class Viewer {
   }
 
   timeFrames(count = 60) {
-    count = Math.max(1, Math.floor(count));
-    const gl = this.gl, pixel = new Uint8Array(4), times = [];
-    for (let k = 0; k < count; k++) {
-      const t0 = performance.now();
+    return timeFrames(this.gl, count, () => {
       packBones(this.rest, this.poseArrays, this.dim, this.boneData);
       this.boneTexture.needsUpdate = true;
       this.render();
-      gl.readPixels(0, 0, 1, 1, gl.RGBA, gl.UNSIGNED_BYTE, pixel);   // waits for the GPU
-      times.push(performance.now() - t0);
-    }
-    return median(times);
+    });
   }
 }
 

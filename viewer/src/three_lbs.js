@@ -9,6 +9,7 @@
 // stretch and twists are ignored here (the a'_i of a stretched chain are kept).
 
 import * as THREE from "three";
+import { timeFrames } from "./timing.js";
 
 const TOKEN = new URLSearchParams(location.search).get("token") || "";
 const DTYPES = { float32: Float32Array, uint16: Uint16Array, uint32: Uint32Array, int32: Int32Array };
@@ -27,11 +28,6 @@ async function loadArray(desc) {
   const Type = DTYPES[desc.dtype];
   if (!Type) throw new Error(`${desc.url}: unsupported dtype ${desc.dtype}`);
   return new Type(await (await api(desc.url)).arrayBuffer());
-}
-
-function median(xs) {
-  const s = [...xs].sort((a, b) => a - b), m = s.length >> 1;
-  return s.length % 2 ? s[m] : 0.5 * (s[m - 1] + s[m]);
 }
 
 class ThreeLbs {
@@ -158,16 +154,10 @@ class ThreeLbs {
    *  upload), skinning and shading in three's shader, and a 1-pixel readPixels that
    *  waits for the GPU, as stbsViewer.timeFrames. */
   timeFrames(count = 60) {
-    count = Math.max(1, Math.floor(count));
-    const gl = this.gl, pixel = new Uint8Array(4), times = [];
-    for (let k = 0; k < count; k++) {
-      const t0 = performance.now();
+    return timeFrames(this.gl, count, () => {
       this.applyPose();
       this.render();                        // updates the bones' matrices and their texture
-      gl.readPixels(0, 0, 1, 1, gl.RGBA, gl.UNSIGNED_BYTE, pixel);
-      times.push(performance.now() - t0);
-    }
-    return median(times);
+    });
   }
 
   info() {
