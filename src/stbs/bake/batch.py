@@ -194,7 +194,7 @@ def assemble(job: Job, rig_digest: str, motion_digest: str, final: str, chunks: 
     p = Path(final)
     for stale in p.parent.glob(f".{p.stem}.*.tmp*"):        # left by a killed writer
         stale.unlink(missing_ok=True)
-    for stale in p.parent.glob(f".{p.stem}.part*.npz.*.tmp*"):
+    for stale in p.parent.glob(f"..{p.stem}.part*.tmp*"):     # a part's (".PART.xyz.tmp")
         stale.unlink(missing_ok=True)
     return {"output": final, "frames": int(len(times)),
             "skinning_s": float(sum(c["skinning_s"] for c in chunks)),
