@@ -14,7 +14,7 @@ relative to its parent is split into a *twist* about the parent bone's axis and 
 twist ``theta_b`` and so grows from 0 to its full angle along the parent bone (a
 forearm's roll, stored at the wrist by capture, turns the forearm progressively instead
 of the wrist alone). The child's final orientation is unchanged: it inherits the full
-twist (DESIGN §2, forward kinematics). Twist angles are unwrapped over time, so a roll
+twist (see :func:`stbs.forward_kinematics`). Twist angles are unwrapped over time, so a roll
 that keeps turning never jumps back by a full turn. ``twist="joint"`` keeps the rigid
 roll at the joint, for comparison. Joints where several bones start keep their twist
 rigid too (one twist per joint cannot serve two children).

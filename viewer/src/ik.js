@@ -1,5 +1,5 @@
 // Skeleton edits in world space on the page: the current pose's per-bone arrays
-// (DESIGN section 2: R_i, a'_i, sigma_i, theta_i) edited by a joint drag (stretching
+// (stbs.Pose: R_i, a'_i, sigma_i, theta_i) edited by a joint drag (stretching
 // the bones at the joint, or inverse kinematics keeping bone lengths) or a rotation
 // of a bone with everything below it, then written back as a pose object for
 // POST /api/pose: the forward-kinematics form where the pose has one (the roll
@@ -218,7 +218,7 @@ export class Bones {
 
   // ---------------------------------------------------------------- back to a pose object
   /**
-   * The pose object (DESIGN section 6) of a world pose: the forward-kinematics form
+   * The pose object (a pose file's JSON) of a world pose: the forward-kinematics form
    * (bones by name, degrees) when the pose has one, else the joints form with the
    * bones' absolute twists. Returns {pose, form}.
    */

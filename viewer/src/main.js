@@ -1,6 +1,6 @@
 // stbs view: the page. Loads the rig from the server's API, skins it in a vertex
 // shader (skin.js: lbs, dqs, stbs-lbs, stbs-dqs), draws it lit with the skeleton
-// over it, and exposes the scripting API window.stbsViewer (DESIGN.md section 7).
+// over it, and exposes the scripting API window.stbsViewer (docs/viewer.md).
 
 import * as THREE from "three";
 import { OrbitControls } from "three/examples/jsm/controls/OrbitControls.js";

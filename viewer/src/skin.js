@@ -2,7 +2,7 @@
 // transform-feedback program that reads the skinned vertices back (feedback.js):
 // one source, so what the tests read back is what the page draws.
 //
-// DESIGN.md section 3, four methods, with the library's conventions
+// docs/skinning.md, four methods, with the library's conventions
 // (src/stbs/skinning/_kernels.py): top-4 bones per vertex, heaviest first; the
 // dual-quaternion methods flip every quaternion into the hemisphere of slot 0's
 // (the heaviest bone, the pivot); normals turned by the cofactor of the blended

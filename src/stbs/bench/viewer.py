@@ -185,7 +185,7 @@ def tube_rig(n: int, *, bones: int = BONES, seed: int = 0) -> Rig:
 
 def bench_pose(bones: int = BONES, *, stretch: bool = True, twist: bool = True,
                seed: int = 0) -> dict:
-    """The pose the benchmark draws, as a forward-kinematics pose object (DESIGN §6).
+    """The pose the benchmark draws, as a forward-kinematics pose object (see stbs.io.read_pose).
 
     Every bone is rotated by 8..20 degrees about a random axis; with ``stretch`` each
     is stretched by 0.8..1.25; with ``twist`` every third bone is twisted by -90..90
@@ -394,7 +394,7 @@ def run_bench(sizes: Sequence[int] = DEFAULT_SIZES,
     -------
     rows : list of dict
         ``{"vertices": n, "method": m, "ms_per_frame": t}`` per size and method, in the
-        order given (DESIGN §7).
+        order given (docs/viewer.md).
     meta : dict
         ``renderer`` (WebGL's), ``browser`` (version), ``canvas`` [w, h], ``frames``
         {size: timed frames per method}, ``rounds`` {size: rounds}, ``three`` (three.js

@@ -128,9 +128,9 @@ def sample(obj: Any, sk: Skeleton) -> dict:
 def pose_object(pose: Pose) -> tuple[dict, bool]:
     """A pose file object for ``pose`` and whether it gives ``pose`` exactly.
 
-    Between keys a clip's joints may part (origins are interpolated linearly, DESIGN
-    section 6), and then neither pose-file form holds the pose; the joints form of its
-    mean joints (:meth:`stbs.Pose.joints`) and its twists stands in for it.
+    Between keys a clip's joints may part (origins are interpolated linearly), and
+    then neither pose-file form holds the pose; the joints form of its mean joints
+    (:meth:`stbs.Pose.joints`) and its twists stands in for it.
     """
     try:
         return pose_to_dict(pose), True

@@ -295,7 +295,7 @@ class ViewerServer:
             return dict(self._pose_obj)
 
     def pose_bones(self) -> dict:
-        """The current pose as its per-bone arrays (DESIGN section 2), for the page's shader.
+        """The current pose as its per-bone arrays (see :class:`stbs.Pose`), for the page's shader.
 
         ``{"rotations": (b, d, d), "origins": (b, d), "stretch": (b,), "twist": (b, 2)}``
         as nested lists, twists in radians: the pose ``POST /api/pose`` read with

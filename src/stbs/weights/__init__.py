@@ -1,4 +1,4 @@
-"""Bone weights and endpoint weights (DESIGN §4)."""
+"""Bone weights and endpoint weights (docs/weights.md)."""
 
 from .bbw import BONE_METHODS, BBWConvergenceWarning, BBWReport, BBWSolver, bbw, bone_weights
 from .boundary import boundary_conditions

@@ -1,6 +1,6 @@
 """Renamed arguments, kept one release under their old name with a ``DeprecationWarning``.
 
-``E`` means endpoint weights everywhere (DESIGN §1); the mesh elements (triangles or
+``E`` means endpoint weights everywhere (the package's glossary); the mesh elements (triangles or
 tetrahedra) that the BBW and Laplacian functions once called ``E`` are ``Ele``
 (libigl's name). :func:`renamed` keeps the real signature (``inspect.signature``
 shows the new name) and maps the old keyword onto it.
@@ -36,7 +36,7 @@ def renamed(old: str, new: str) -> Callable[[_F], _F]:
                                     f"{old!r}; pass {new} only")
                 warnings.warn(f"{qual}({old}=...) is deprecated and will be removed in the "
                               f"next release: the argument is called {new} "
-                              f"({old} means endpoint weights, DESIGN §1); pass {new}=... "
+                              f"({old} means endpoint weights in stbs); pass {new}=... "
                               "or by position", DeprecationWarning, stacklevel=2)
                 kwargs[new] = kwargs.pop(old)
             return func(*args, **kwargs)

@@ -221,7 +221,7 @@ class BBWSolver:
     Ele : (f, 3) int or (t, 4) int
         The elements: triangles ``F`` (a 2D mesh, or a surface in 3D) or tetrahedra
         ``T`` (3D volume). The keyword ``E=`` is deprecated (``E`` means endpoint
-        weights, DESIGN §1).
+        weights in stbs).
     backend : {"auto", "cholmod", "cholespy", "scipy"}
         Sparse Cholesky backend (:mod:`stbs.weights._cholesky`).
     mass : {"default", "voronoi", "barycentric"}
@@ -313,7 +313,7 @@ class BBWSolver:
     def E(self) -> np.ndarray:
         """Deprecated name of :attr:`Ele` (``E`` means endpoint weights)."""
         warnings.warn("BBWSolver.E is deprecated and will be removed in the next release: "
-                      "the elements are BBWSolver.Ele (E means endpoint weights, DESIGN §1)",
+                      "the elements are BBWSolver.Ele (E means endpoint weights in stbs)",
                       DeprecationWarning, stacklevel=2)
         return self.Ele
 
@@ -809,7 +809,7 @@ def bone_weights(V, sk: Skeleton, *, method: BoneMethod = "bbw", F=None, T=None,
                  partition_of_unity: bool | None = None, samples: int | None = None,
                  tol: float | None = None,
                  progress: Callable[[int, int], None] | None = None) -> np.ndarray:
-    """Bone weights W (n, b) for a skeleton, rows summing to 1 (DESIGN §4).
+    """Bone weights W (n, b) for a skeleton, rows summing to 1 (docs/weights.md).
 
     Parameters
     ----------

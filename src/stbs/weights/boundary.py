@@ -1,6 +1,6 @@
 """Boundary conditions for bone weights: which vertices a bone holds at weight 1.
 
-Two cases (DESIGN §4: boundary conditions never silently give empty weights):
+Two cases (boundary conditions never silently give empty weights):
 
 * **Meshes with bone samples** (the ones :mod:`stbs.meshing` builds, libigl's
   ``hand.mesh``): every vertex within ``tol`` of bone i's segment gets the bc row
