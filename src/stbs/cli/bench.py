@@ -14,7 +14,7 @@ from ._errors import CommandError
 
 NAME = "bench"
 HELP = ("throughput of the four skinning methods, or (--weights) of bounded biharmonic "
-        "weights, or (--viewer) the viewer's frame time")
+        "weights, (--viewer) the viewer's frame time, (--animate) baking")
 EXAMPLE = "stbs bench"
 DESCRIPTION = ("Time lbs, dqs, stbs-lbs and stbs-dqs per vertex on this machine, beside "
                "a NumPy and a SciPy LBS timed the same way (the options below come from "
@@ -24,7 +24,8 @@ DESCRIPTION = ("Time lbs, dqs, stbs-lbs and stbs-dqs per vertex on this machine,
                "SkinnedMesh (stbs bench --viewer --help).")
 EPILOG = (f"examples:\n  {EXAMPLE}\n  stbs bench --sizes 100k --dtype float32 --no-peers\n"
           "  stbs bench --weights --cases 2d-5k,3d-10k --json bbw.json\n"
-          "  stbs bench --viewer --sizes 10k,100k --json viewer.json")
+          "  stbs bench --viewer --sizes 10k,100k --json viewer.json\n"
+          "  stbs bench --animate --workers 1,2 --json bake.json")
 WEIGHTS_DESCRIPTION = (
     "Time stbs's bounded biharmonic weights (BBWSolver construction + solve) on built-in "
     "meshes, and a complete 20-bone rig (bone + endpoint weights, stbs.build_rig) per stage "
