@@ -153,9 +153,9 @@ def browser():
 class Page:
     """The viewer page for one rig, served by a ViewerServer in a thread."""
 
-    def __init__(self, browser, rig, extras=None):
+    def __init__(self, browser, rig, extras=None, clip=None):
         self.rig = rig
-        self.srv = ViewerServer(rig, extras=extras).start()
+        self.srv = ViewerServer(rig, extras=extras, clip=clip).start()
         self.errors = []
         self.page = browser.new_page(viewport={"width": 640, "height": 480})
         self.page.on("console", lambda m: m.type == "error" and self.errors.append(m.text))

@@ -112,6 +112,10 @@ class Viewer {
     this.gizmo = new Gizmo(this, this.editor.bones);
     this.poseFiles = new PoseFiles(this, apiJSON, status);
     this.timeline = new Timeline(this, apiJSON, status);
+    if (info.clip) {        // started with a clip (stbs view RIG --motion FILE): on the timeline
+      const { clip } = await apiJSON("/api/clip");
+      await this.timeline.setClip(clip);
+    }
     this.frame();
   }
 

@@ -37,19 +37,25 @@ keeping their lengths), a rotation gizmo and twist and stretch sliders, saves, d
 and loads pose files, colours the mesh by its bone or endpoint weights, paints them with
 a brush (undoable), recomputes one bone's endpoint weights by any --endpoint method,
 shapes them with a curve (paper Fig. 10), saves the painted rig, and can be scripted
-through window.stbsViewer (docs/viewer.md)."""
+through window.stbsViewer (docs/viewer.md).
+
+--motion FILE opens the timeline with an animation of the rig: a BVH capture
+(retargeted onto the rig by joint names, each joint's twist spread along its bone), a
+clip .json, or a glTF animation of the rig's skeleton (a glTF rig opens with its own
+first animation when it has one)."""
 EPILOG = f"""examples:
   {EXAMPLE}
   stbs view                                     # the arm example
   stbs view --example picture --no-browser --port 8765
-  stbs view arm.obj arm.tgf --bone heat --endpoint heat --save-as arm-rig.npz"""
+  stbs view arm.obj arm.tgf --bone heat --endpoint heat --save-as arm-rig.npz
+  stbs view character.glb --motion 131_01.bvh"""
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     from .rig import BONE, ENDPOINT, add_clip_argument, add_tol_argument
 
-    p.add_argument("input", nargs="?", metavar="RIG.npz|MESH",
-                   help="a .npz rig, or a mesh (then give its SKELETON too)")
+    p.add_argument("input", nargs="?", metavar="RIG|MESH",
+                   help="a rig (.npz, .gltf, .glb), or a mesh (then give its SKELETON too)")
     p.add_argument("skeleton", nargs="?", metavar="SKELETON",
                    help="the skeleton (.tgf .bf) of MESH, rigged before serving")
     p.add_argument("--example", choices=EXAMPLES, default=None,
@@ -60,6 +66,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="only print the URL; do not open a browser")
     p.add_argument("--save-as", default=None, metavar="PATH.npz",
                    help="where the page saves the rig (its folder also takes the poses)")
+    p.add_argument("--motion", default=None, metavar="FILE",
+                   help="open the timeline with this animation: .bvh (retargeted), clip "
+                        ".json, or a glTF animation of the rig's skeleton")
     g = p.add_argument_group("rigging MESH SKELETON (as stbs rig)")
     g.add_argument("--bone", choices=BONE, default=None, help="bone weights (default: bbw)")
     g.add_argument("--endpoint", choices=ENDPOINT, default=None,
@@ -74,11 +83,14 @@ def requires(args: argparse.Namespace) -> list[str]:
     """Optional modules this run needs: Pillow for an image MESH."""
     from .rig import IMAGE_EXTENSIONS
 
+    need = []
+    if args.motion is not None and args.motion.lower().endswith((".gltf", ".glb")):
+        need.append("pygltflib")
     if args.skeleton is not None and args.input is not None:
-        return ["PIL"] if args.input.lower().endswith(IMAGE_EXTENSIONS) else []
+        return need + (["PIL"] if args.input.lower().endswith(IMAGE_EXTENSIONS) else [])
     if args.input is not None and args.input.lower().endswith((".gltf", ".glb")):
-        return ["pygltflib"]
-    return []
+        need.append("pygltflib")
+    return sorted(set(need))
 
 
 def _check(args: argparse.Namespace):
@@ -104,6 +116,14 @@ def _check(args: argparse.Namespace):
     given = [k for k, v in rigging.items() if v is not None]
     if given and kind != "mesh":
         raise CommandError(f"{given[0]} applies to MESH SKELETON, which stbs view rigs first")
+    if args.motion is not None:
+        from ..bake import MOTION_EXTENSIONS
+
+        if not args.motion.lower().endswith(MOTION_EXTENSIONS):
+            raise CommandError(f"--motion {args.motion!r}: expected one of "
+                               f"{', '.join(MOTION_EXTENSIONS)}")
+        if not Path(args.motion).is_file():
+            raise CommandError(f"--motion {args.motion!r}: file not found")
     if not 0 <= args.port <= 65535:
         raise CommandError(f"--port: expected 0..65535 (0: a free port), got {args.port}")
     save_as = None
@@ -171,6 +191,32 @@ def _rig_from_files(args: argparse.Namespace):
                           tets=args.tets or "auto", tol=tol, clip_skeleton=args.clip_skeleton)
 
 
+def _motion(args: argparse.Namespace, rig, kind: str):
+    """The clip the timeline opens with: --motion, else a glTF rig's first animation
+    (skipped with a warning when it has no clip file form)."""
+    import warnings
+
+    from ..bake import load_motion
+
+    if args.motion is not None:
+        return load_motion(args.motion, rig)
+    if kind != "rig" or not args.input.lower().endswith((".gltf", ".glb")):
+        return None
+    from ..io import clip_to_dict, read_gltf
+
+    _, clips = read_gltf(args.input)
+    if not clips:
+        return None
+    name, clip = next(iter(clips.items()))
+    try:
+        clip_to_dict(clip)
+    except ValueError as exc:
+        warnings.warn(f"{args.input!r}: its animation {name!r} cannot go on the timeline "
+                      f"({exc})", UserWarning, stacklevel=2)
+        return None
+    return clip
+
+
 def _serve(args: argparse.Namespace, kind: str, save_as):
     """The rig and its server, ready to serve (warnings reported as they happen)."""
     import errno
@@ -191,9 +237,10 @@ def _serve(args: argparse.Namespace, kind: str, save_as):
         name = Path(args.input).stem
         rig = _rig_from_files(args)
     rig_target, pose_folder = _targets(kind, args.input, save_as)
+    clip = _motion(args, rig, kind)
     try:
         return ViewerServer(rig, port=args.port, rig_target=rig_target,
-                            pose_folder=pose_folder, name=name, extras=extras)
+                            pose_folder=pose_folder, name=name, extras=extras, clip=clip)
     except OSError as exc:
         why = exc.strerror or str(exc)
         if exc.errno == errno.EADDRINUSE:

@@ -44,7 +44,7 @@ from urllib.parse import parse_qs
 
 import numpy as np
 
-from ..io import pose_to_dict, read_pose, save_rig, write_pose
+from ..io import clip_to_dict, pose_to_dict, read_pose, save_rig, write_pose
 from ..pose import Pose
 from ..rig import Rig
 from . import clips
@@ -165,6 +165,10 @@ class ViewerServer:
         Largest request body, in bytes (default :data:`MAX_BODY`).
     verbose : bool, keyword-only
         Log each request (method, path without its query, status) on stderr.
+    clip : Clip, keyword-only, optional
+        An animation of the rig's skeleton to open the page's timeline with (``GET
+        /api/clip``), e.g. a capture retargeted onto the rig or a glTF file's own
+        animation; it must have a clip file form (:func:`stbs.io.clip_to_dict`).
 
     Raises
     ------
@@ -193,7 +197,8 @@ class ViewerServer:
     def __init__(self, rig: Rig, *, port: int = 0, static_dir: str | os.PathLike | None = None,
                  rig_target: str | os.PathLike | None = None,
                  pose_folder: str | os.PathLike | None = None, name: str = "rig",
-                 extras: dict | None = None, max_body: int = MAX_BODY, verbose: bool = False):
+                 extras: dict | None = None, max_body: int = MAX_BODY, verbose: bool = False,
+                 clip=None):
         if isinstance(port, bool) or not isinstance(port, int) or not 0 <= port <= 65535:
             raise ValueError(f"port must be an integer in 0..65535 (0: any free port), "
                              f"got {port!r}")
@@ -211,6 +216,11 @@ class ViewerServer:
             raise ValueError(f"pose_folder must be an existing folder, got "
                              f"{str(self.pose_folder)!r}")
         self.name = str(name)
+        self._clip_obj = None
+        if clip is not None:
+            if getattr(clip, "skeleton", None) != rig.skeleton:
+                raise ValueError("clip must be a stbs.Clip of the rig's skeleton")
+            self._clip_obj = clip_to_dict(clip)
         self.max_body = max_body
         self.verbose = bool(verbose)
         self.token = secrets.token_hex(16)
@@ -280,8 +290,16 @@ class ViewerServer:
     def info(self) -> dict:
         info = self.payload.info()
         info.update(name=self.name, save={"rig": self.rig_target is not None,
-                                          "pose": self.pose_folder is not None})
+                                          "pose": self.pose_folder is not None},
+                    clip=self._clip_obj is not None)
         return info
+
+    def get_clip(self) -> dict:
+        """``GET /api/clip``: the clip the server was started with, as a clip file object."""
+        if self._clip_obj is None:
+            raise _Refused(404, "/api/clip: this viewer was started without a clip "
+                                "(stbs view RIG --motion FILE)")
+        return {"clip": self._clip_obj}
 
     def get_pose(self) -> dict:
         with self._lock:
@@ -650,7 +668,7 @@ class _Handler(BaseHTTPRequestHandler):
         routes = {"/api/rig": ("GET",), "/api/pose": ("GET", "POST"),
                   "/api/pose/bones": ("GET",),
                   "/api/save-pose": ("POST",), "/api/save-rig": ("POST",),
-                  "/api/endpoint-weights": ("POST",)}
+                  "/api/endpoint-weights": ("POST",), "/api/clip": ("GET",)}
         routes.update(dict.fromkeys(_CLIP_ROUTES, ("POST",)))
         m = _ARRAY.match(path)
         allowed = ("GET",) if m else routes.get(path)
@@ -669,6 +687,8 @@ class _Handler(BaseHTTPRequestHandler):
             return self._json({"pose": viewer.set_pose(self._json_body())})
         if path == "/api/pose/bones":
             return self._json(viewer.pose_bones())
+        if path == "/api/clip":
+            return self._json(viewer.get_clip())
         if path == "/api/save-pose":
             return self._json(viewer.save_pose(self._json_body()))
         if path == "/api/endpoint-weights":
