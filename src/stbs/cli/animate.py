@@ -75,14 +75,17 @@ def requires(args: argparse.Namespace) -> list[str]:
 
 
 def _bar(label: str):
+    """The progress bar of ``stbs rig``'s stages on a terminal, closed at the end."""
+    from .rig import _Stages
+
+    if not sys.stderr.isatty():
+        return None
+    draw = _Stages._bar(label)
+
     def progress(done: int, total: int) -> None:
-        if not sys.stderr.isatty():
-            return
-        w = 30
-        k = w * done // max(total, 1)
-        end = "\n" if done == total else ""
-        print(f"\r{label} [{'#' * k}{'.' * (w - k)}] {done}/{total}", end=end,
-              file=sys.stderr, flush=True)
+        draw(done, total)
+        if done == total:
+            print(file=sys.stderr, flush=True)
     return progress
 
 

@@ -23,7 +23,7 @@ from ._atomic import atomic_open
 from ._parse import input_path, suffix
 from .errors import FormatError
 from .gltf import GLTF_EXTENSIONS, _File, read_gltf
-from .gltf_write import write_gltf
+from .gltf_write import glb_bytes, write_gltf
 from .rig import load_rig, save_rig
 
 __all__ = ["read_rig", "write_rig", "RIG_EXTENSIONS"]
@@ -151,13 +151,8 @@ def _add_endpoint_weights(src: Path, dst: Path, rig: Rig) -> None:
             b["uri"] = "data:application/octet-stream;base64," + base64.b64encode(
                 buffers[k]).decode()
     if glb:
-        js = json.dumps(doc, separators=(",", ":")).encode()
-        js += b" " * (-len(js) % 4)
-        bin_ = buffers[0] + b"\0" * (-len(buffers[0]) % 4)
         with atomic_open(dst, "wb") as out:
-            out.write(struct.pack("<4sII", b"glTF", 2, 12 + 8 + len(js) + 8 + len(bin_)))
-            out.write(struct.pack("<I4s", len(js), b"JSON") + js)
-            out.write(struct.pack("<I4s", len(bin_), b"BIN\0") + bin_)
+            out.write(glb_bytes(doc, buffers[0]))
     else:
         with atomic_open(dst, "w", encoding="utf-8") as out:
             json.dump(doc, out)

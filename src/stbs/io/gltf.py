@@ -380,6 +380,8 @@ def read_gltf(path: str | os.PathLike, *, skin: int | str | None = None,
                 raise FormatError(p, f"primitive {k} WEIGHTS_{sets}: weights >= 0",
                                   f"{Wk.min():.6g}")
             np.add.at(W, (np.repeat(np.arange(n), 4)[used.ravel()], J[used]), Wk[used])
+            if sets == 0:
+                J0, W0 = J, Wk
             sets += 1
         if sets == 0:
             raise FormatError(p, f"primitive {k}: JOINTS_0 and WEIGHTS_0 (a skinned primitive)",
@@ -387,8 +389,7 @@ def read_gltf(path: str | os.PathLike, *, skin: int | str | None = None,
         E_acc = getattr(at, "_ENDPOINT_WEIGHTS_0", None)       # written by stbs
         if E_acc is not None:
             e = f.accessor(E_acc, f"primitive {k} _ENDPOINT_WEIGHTS_0")
-            J = f.accessor(at.JOINTS_0, f"primitive {k} JOINTS_0", floats=False)
-            w0 = f.accessor(at.WEIGHTS_0, f"primitive {k} WEIGHTS_0")
+            J, w0 = J0, W0
             if e.shape != (n, 4) or e.min(initial=0) < 0 or e.max(initial=0) > 1:
                 raise FormatError(p, f"primitive {k} _ENDPOINT_WEIGHTS_0: {n} VEC4 in [0, 1]",
                                   f"{e.shape}, values in [{e.min():.3g}, {e.max():.3g}]")

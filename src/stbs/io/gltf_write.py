@@ -41,10 +41,21 @@ from ._atomic import atomic_open
 from ._parse import suffix
 from .gltf import GLTF_EXTENSIONS
 
-__all__ = ["write_gltf", "quantize_weights"]
+__all__ = ["write_gltf", "quantize_weights", "glb_bytes"]
 
 _FLOAT, _USHORT, _UINT, _UBYTE = 5126, 5123, 5125, 5121
 _ARRAY, _ELEMENTS = 34962, 34963
+
+
+def glb_bytes(doc: dict, blob: bytes) -> bytes:
+    """A GLB file: the 12-byte header, the JSON chunk (space-padded) and the BIN chunk
+    (zero-padded), each to 4 bytes as the specification asks."""
+    js = json.dumps(doc, separators=(",", ":")).encode()
+    js += b" " * (-len(js) % 4)
+    bin_ = blob + b"\0" * (-len(blob) % 4)
+    return (struct.pack("<4sII", b"glTF", 2, 12 + 8 + len(js) + 8 + len(bin_))
+            + struct.pack("<I4s", len(js), b"JSON") + js
+            + struct.pack("<I4s", len(bin_), b"BIN\0") + bin_)
 
 
 def quantize_weights(w: np.ndarray, total: int = 65535) -> np.ndarray:
@@ -261,16 +272,8 @@ def write_gltf(path: str | os.PathLike, rig: Rig, clip: Clip | None = None,
     glb = os.fspath(path).lower().endswith(".glb")
     if glb:
         doc["buffers"] = [{"byteLength": len(data)}]
-        js = json.dumps(doc, separators=(",", ":")).encode()
-        js += b" " * (-len(js) % 4)
-        bin_ = data + b"\0" * (-len(data) % 4)
-        head = struct.pack("<4sII", b"glTF", 2, 12 + 8 + len(js) + 8 + len(bin_))
         with atomic_open(path, "wb") as f:
-            f.write(head)
-            f.write(struct.pack("<I4s", len(js), b"JSON"))
-            f.write(js)
-            f.write(struct.pack("<I4s", len(bin_), b"BIN\0"))
-            f.write(bin_)
+            f.write(glb_bytes(doc, data))
     else:
         doc["buffers"] = [{"byteLength": len(data), "uri": "data:application/octet-stream;"
                            "base64," + base64.b64encode(data).decode()}]
