@@ -153,11 +153,20 @@ def browser():
 class Page:
     """The viewer page for one rig, served by a ViewerServer in a thread."""
 
-    def __init__(self, browser, rig, extras=None, clip=None):
+    def __init__(self, browser, rig, extras=None, clip=None, *, page_options=None,
+                 **server):
+        """``server``: more ViewerServer options (rig_target, pose_folder, name, ...);
+        ``page_options``: more options of the browser page (e.g. accept_downloads)."""
         self.rig = rig
-        self.srv = ViewerServer(rig, extras=extras, clip=clip).start()
+        self.srv = ViewerServer(rig, extras=extras, clip=clip, **server).start()
+        self.page_options = dict(page_options or {})
+        self.open(browser)
+
+    def open(self, browser):
+        """Open (again) a browser page on the server and wait until the viewer is ready."""
         self.errors = []
-        self.page = browser.new_page(viewport={"width": 640, "height": 480})
+        self.page = browser.new_page(viewport={"width": 640, "height": 480},
+                                     **self.page_options)
         self.page.on("console", lambda m: m.type == "error" and self.errors.append(m.text))
         self.page.on("pageerror", lambda e: self.errors.append(str(e)))
         self.page.goto(self.srv.url)

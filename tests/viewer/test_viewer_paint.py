@@ -15,28 +15,14 @@ import pytest
 from test_viewer_page import READY_S, Page, browser, plate_rig, tube_rig  # noqa: F401
 
 import stbs
-from stbs.viewer import ViewerServer
 from stbs.weights import SplineFilter
 
 POS_TOL = 1e-4          # of the bounding-box diagonal
 
 
-class SavingPage(Page):
+def SavingPage(browser, rig, target):  # noqa: N802, F811
     """Page, with the server saving the rig to ``target``."""
-
-    def __init__(self, browser, rig, target):  # noqa: F811
-        self.rig = rig
-        self.srv = ViewerServer(rig, rig_target=target).start()
-        self.open(browser)
-
-    def open(self, browser):  # noqa: F811
-        self.errors = []
-        self.page = browser.new_page(viewport={"width": 640, "height": 480})
-        self.page.on("console", lambda m: m.type == "error" and self.errors.append(m.text))
-        self.page.on("pageerror", lambda e: self.errors.append(str(e)))
-        self.page.goto(self.srv.url)
-        self.page.wait_for_function("window.stbsViewer !== undefined", timeout=READY_S * 1000)
-        self.info = self.js("stbsViewer.ready")
+    return Page(browser, rig, rig_target=target)
 
 
 @pytest.fixture(scope="module")
@@ -457,8 +443,8 @@ def test_painting_on_the_plate_saves_and_a_fresh_page_shows_it(plate, browser): 
     Ws = saved.W.toarray() if hasattr(saved.W, "toarray") else np.asarray(saved.W)
     Es = saved.E.toarray() if hasattr(saved.E, "toarray") else np.asarray(saved.E)
     assert np.array_equal(Ws, W1.astype(np.float64)) and np.array_equal(Es, E1.astype(np.float64))
-    fresh = SavingPage.__new__(SavingPage)
-    fresh.rig, fresh.srv = p.rig, p.srv
+    fresh = Page.__new__(Page)               # a second page on the same server
+    fresh.rig, fresh.srv, fresh.page_options = p.rig, p.srv, {}
     fresh.open(browser)
     try:
         W2, E2 = _weights(fresh)

@@ -14,25 +14,14 @@ import pytest
 from test_viewer_page import READY_S, Page, browser, plate_rig, tube_rig  # noqa: F401  (fixture)
 
 import stbs
-from stbs.viewer import ViewerServer
 
 SCREENS = Path(__file__).resolve().parents[2] / "build" / "screens"
 
 
-class PosingPage(Page):
-    """Page with a pose folder, so that "save pose" writes there."""
-
-    def __init__(self, browser, rig, pose_folder=None):  # noqa: F811
-        self.rig = rig
-        self.srv = ViewerServer(rig, pose_folder=pose_folder, name="posing").start()
-        self.errors = []
-        self.page = browser.new_page(viewport={"width": 640, "height": 480},
-                                     accept_downloads=True)
-        self.page.on("console", lambda m: m.type == "error" and self.errors.append(m.text))
-        self.page.on("pageerror", lambda e: self.errors.append(str(e)))
-        self.page.goto(self.srv.url)
-        self.page.wait_for_function("window.stbsViewer !== undefined", timeout=READY_S * 1000)
-        self.info = self.js("stbsViewer.ready")
+def PosingPage(browser, rig, pose_folder=None):  # noqa: N802, F811
+    """Page with a pose folder, so that "save pose" writes there, and downloads on."""
+    return Page(browser, rig, pose_folder=pose_folder, name="posing",
+                page_options={"accept_downloads": True})
 
 
 @pytest.fixture(scope="module")
