@@ -141,3 +141,102 @@ def test_pose_and_sample_check_their_arguments():
     long = stbs.Clip([(0.0, stbs.Pose.rest(_bone_2d())), (1e6, stbs.Pose.rest(_bone_2d()))])
     with pytest.raises(ValueError, match="at most 100000"):
         long.sample_times()
+
+
+# ---------------------------------------------------------------- the local frame
+def _curl_chain():
+    C = [[0, 0, 0], [1, 0, 0], [2, 0, 0], [3, 0, 0]]
+    return stbs.Skeleton(C, [[0, 1], [1, 2], [2, 3]], names=["a", "b", "c"])
+
+
+def _rz(deg):
+    a = np.radians(deg)
+    return np.array([[np.cos(a), -np.sin(a), 0], [np.sin(a), np.cos(a), 0], [0, 0, 1]])
+
+
+def test_a_curling_chain_never_tears_or_shrinks_between_keys():
+    sk = _curl_chain()
+    curled = stbs.forward_kinematics(sk, rotations=[_rz(90)] * 3)
+    clip = stbs.Clip([(0.0, stbs.Pose.rest(sk)), (1.0, curled)])
+    for t in np.linspace(0, 1, 21):
+        pose = clip.pose(float(t))
+        # connected: every child starts at its parent's posed end (gap < 1e-9)
+        gap = np.linalg.norm(pose.origins[1:] - pose.ends[:-1], axis=1)
+        assert gap.max() < 1e-9
+        # bones keep their length, and the chain is forward kinematics of the slerped
+        # local rotations (90 degrees per joint at t = 1)
+        np.testing.assert_allclose(np.linalg.norm(pose.ends - pose.origins, axis=1), 1.0,
+                                   atol=1e-12)
+        want = stbs.forward_kinematics(sk, rotations=[_rz(90 * t)] * 3)
+        np.testing.assert_allclose(pose.rotations, want.rotations, atol=1e-12)
+        np.testing.assert_allclose(pose.origins, want.origins, atol=1e-12)
+    # half-way the tip is where three 45-degree turns put it, not a third of the way
+    tip = clip.pose(0.5).ends[2]
+    a = np.radians([45, 90, 135])
+    np.testing.assert_allclose(tip[:2], [np.cos(a).sum(), np.sin(a).sum()], atol=1e-12)
+
+
+def test_offset_children_are_carried_between_keys():
+    # hips with two legs hanging off its start and a spine: turning the hips turns all
+    C = [[0, 0, 0], [0, 1, 0], [0.2, 0, 0], [0.2, -1, 0], [-0.2, 0, 0], [-0.2, -1, 0]]
+    sk = stbs.Skeleton(C, [[0, 1], [2, 3], [4, 5]], names=["hips", "l", "r"], P=[-1, 0, 0])
+    turned = stbs.forward_kinematics(sk, rotations=[_rz(90), np.eye(3), np.eye(3)])
+    np.testing.assert_allclose(turned.origins[1], [0, 0.2, 0], atol=1e-12)
+    clip = stbs.Clip([(0.0, stbs.Pose.rest(sk)), (2.0, turned)])
+    mid = clip.pose(1.0)
+    R = _rz(45)
+    np.testing.assert_allclose(mid.origins[1:], (np.array(C)[[2, 4]]) @ R.T, atol=1e-12)
+    np.testing.assert_allclose(mid.rotations[1:], [R, R], atol=1e-12)
+
+
+def test_poses_for_many_times_equal_one_at_a_time():
+    rng = np.random.default_rng(3)
+    sk = _curl_chain()
+    keys = []
+    for k in range(4):
+        q = rng.normal(size=(3, 4))
+        R = stbs.transforms.quat_to_matrix(q / np.linalg.norm(q, axis=1, keepdims=True))
+        keys.append((float(k), stbs.forward_kinematics(
+            sk, rotations=R, stretch=rng.uniform(0.5, 2, 3), twist=rng.normal(size=4))))
+    clip = stbs.Clip(keys)
+    ts = np.linspace(-0.5, 3.5, 17)
+    R, O, sig, th = clip.arrays(ts)
+    for k, t in enumerate(ts):
+        p = clip.pose(float(t))
+        np.testing.assert_allclose(R[k], p.rotations, atol=1e-12)
+        np.testing.assert_allclose(O[k], p.origins, atol=1e-12)
+        np.testing.assert_allclose(sig[k], p.stretch, atol=1e-15)
+        np.testing.assert_allclose(th[k], p.twist, atol=1e-15)
+    # a key comes back as given
+    for (t, pose), Rk, Ok in zip(keys, *clip.arrays([t for t, _ in keys])[:2], strict=True):
+        np.testing.assert_allclose(Rk, pose.rotations, atol=1e-12)
+        np.testing.assert_allclose(Ok, pose.origins, atol=1e-12)
+
+
+def test_from_local_step_and_cubic_channels():
+    sk = _curl_chain()
+    times = np.array([0.0, 1.0, 2.0])
+    ang = np.radians([0.0, 60.0, 90.0])
+    q = np.zeros((3, 3, 4))
+    q[..., 0] = 1
+    q[:, 0, 0], q[:, 0, 3] = np.cos(ang / 2), np.sin(ang / 2)
+    q[:, 1] = q[:, 0]
+    q[:, 2] = q[:, 0]
+    zero = np.zeros_like(q)
+    clip = stbs.Clip.from_local(sk, times, rotations=q,
+                                rotation_interpolation=["linear", "step", "cubic"],
+                                rotation_tangents=(zero, zero))
+    L = clip.local([0.5, 1.5])[0]
+    a = lambda R: np.degrees(np.arctan2(R[1, 0], R[0, 0]))   # noqa: E731
+    assert a(L[0, 0]) == pytest.approx(30.0, abs=1e-9)       # slerp
+    assert a(L[0, 1]) == pytest.approx(0.0, abs=1e-9)        # step: held
+    assert a(L[1, 1]) == pytest.approx(60.0, abs=1e-9)
+    # cubic Hermite with zero slopes: the quaternion half way between, normalised
+    h = 0.5 * (q[0, 2] + q[1, 2])
+    h /= np.linalg.norm(h)
+    assert a(L[0, 2]) == pytest.approx(np.degrees(2 * np.arctan2(h[3], h[0])), abs=1e-9)
+    assert clip.pose(1.0).rotations.shape == (3, 3, 3)
+    with pytest.raises(ValueError, match="rotation_tangents"):
+        stbs.Clip.from_local(sk, times, rotations=q, rotation_interpolation="cubic")
+    with pytest.raises(ValueError, match="increase"):
+        stbs.Clip.from_local(sk, [0.0, 0.0, 1.0], rotations=q)

@@ -8,7 +8,7 @@ from . import _checks
 from . import transforms as tf
 from .skeleton import Skeleton
 
-__all__ = ["Pose", "forward_kinematics"]
+__all__ = ["Pose", "forward_kinematics", "fk_arrays", "local_arrays", "joint_twists"]
 
 
 def _check_skeleton(sk) -> Skeleton:
@@ -112,6 +112,40 @@ class Pose:
         return cls(sk, rotations=R, origins=Cp[sk.BE[:, 0]], stretch=length / sk.lengths,
                    twist=twist)
 
+    @classmethod
+    def from_local(cls, sk: Skeleton, rotations=None, *, stretch=None, twist=None,
+                   offsets=None) -> Pose:
+        """Pose from the local (forward-kinematics) frame: the inverse of :meth:`local`.
+
+        Parameters
+        ----------
+        rotations : (b, d, d) float, optional
+            Each bone's rotation in the frame its parent carries it in (world for a
+            root); identity by default. 2D also accepts (b,) angles.
+        stretch : (b,) float, optional
+        twist : (b, 2) float, optional
+            Each bone's own twist angles at its start and end (radians), on top of the
+            frame it inherits.
+        offsets : (b, d) float, optional
+            Each bone's start offset, in that frame (world for a root).
+        """
+        sk = _check_skeleton(sk)
+        b, d = sk.n_bones, sk.dim
+        L = np.tile(np.eye(d), (b, 1, 1)) if rotations is None else _rotations(
+            "rotations", rotations, b, d)
+        sigma = np.ones(b) if stretch is None else _checks.real_array("stretch", stretch,
+                                                                       shape=(b,))
+        theta = np.zeros((b, 2)) if twist is None else _checks.real_array("twist", twist,
+                                                                          shape=(b, 2))
+        D = np.zeros((b, d)) if offsets is None else _checks.real_array("offsets", offsets,
+                                                                         shape=(b, d))
+        if np.any(sigma <= 0):
+            i = int(np.argmin(sigma))
+            raise ValueError(f"stretch must be > 0, got {sigma[i]:.6g} for bone {i} "
+                             f"({sk.names[i]!r})")
+        R, O = fk_arrays(sk, L, sigma, theta, D)
+        return cls(sk, rotations=R, origins=O, stretch=sigma, twist=theta)
+
     # ------------------------------------------------------------------ derived
     @property
     def ends(self) -> np.ndarray:
@@ -176,42 +210,183 @@ class Pose:
     def interpolate(self, other: Pose, t: float) -> Pose:
         """Pose at ``t`` in [0, 1] between this (t=0) and ``other`` (t=1).
 
-        Rotations are slerped along the shortest arc; origins, stretch and twist are
-        interpolated linearly (so twists past 360 degrees are kept, not wrapped).
+        Interpolated in the local (forward-kinematics) frame, as glTF, BVH and USD
+        animation do: each bone's rotation relative to its parent's frame is slerped
+        along the shortest arc; stretch, twist (past 360 degrees kept) and each bone's
+        offset from where it hangs are interpolated linearly; forward kinematics then
+        builds the pose, so chains never tear or shrink in between.
         """
         _check_same_skeleton(self, other)
         t = float(t)
         if not np.isfinite(t):
             raise ValueError(f"t must be finite, got {t}")
-        R = tf.matrix_slerp(self.rotations, other.rotations, t)
-        return Pose(self.skeleton, rotations=R,
-                    origins=(1 - t) * self.origins + t * other.origins,
-                    stretch=(1 - t) * self.stretch + t * other.stretch,
-                    twist=(1 - t) * self.twist + t * other.twist)
+        sk = self.skeleton
+        L0, D0 = self.local()
+        L1, D1 = other.local()
+        L = tf.matrix_slerp(L0, L1, t)
+        sigma = (1 - t) * self.stretch + t * other.stretch
+        theta = (1 - t) * self.twist + t * other.twist
+        R, O = fk_arrays(sk, L, sigma, theta, (1 - t) * D0 + t * D1)
+        return Pose(sk, rotations=R, origins=O, stretch=sigma, twist=theta)
+
+    def local(self) -> tuple[np.ndarray, np.ndarray]:
+        """This pose in the local (forward-kinematics) frame.
+
+        Returns
+        -------
+        rotations : (b, d, d) float
+            Each bone's rotation in the frame it hangs in, ``F_p^T R_i`` with
+            ``F_p = R_p K_p(t_c)`` (``R_i`` for a root).
+        offsets : (b, d) float
+            How far each bone's start lies from where its parent carries it, in that
+            frame: ``F_p^T (a'_i - a'_p) - t_c s_p - (a_i - a_p)`` (``a'_i - a_i`` for a
+            root); zero for every bone of a pose made by forward kinematics without
+            per-bone translation.
+
+        :func:`fk_arrays` with these, the stretch and the twist gives the pose back.
+        """
+        return local_arrays(self.skeleton, self.rotations, self.origins, self.stretch,
+                            self.twist)
 
     def __repr__(self) -> str:
         return f"Pose({self.skeleton!r})"
 
 
+def _hang_frames(sk: Skeleton, R, theta, idx) -> np.ndarray:
+    """(..., k, d, d) frames ``F_p = R_p K_p(t_c)`` the bones ``idx`` hang in."""
+    p = sk.parents[idx]
+    F = R[..., p, :, :]
+    if sk.dim == 3:
+        t = sk.hang[idx]
+        ang = (1 - t) * theta[..., p, 0] + t * theta[..., p, 1]
+        F = F @ tf.axis_angle_to_matrix(sk.axes[p], ang)
+    return F
+
+
+def fk_arrays(sk: Skeleton, L, sigma, theta, D) -> tuple[np.ndarray, np.ndarray]:
+    """Forward kinematics on arrays, batched over any leading axes (DESIGN §2, way 3).
+
+    A root bone turns by ``L_i`` about its start and moves by ``D_i``; a child hangs in
+    its parent's frame ``F_p = R_p K_p(t_c)`` at ``t_c`` (:attr:`Skeleton.hang`):
+    ``R_i = F_p L_i`` and ``a'_i = a'_p + F_p (t_c s_p + a_i - a_p + D_i)``. Bones are
+    computed a depth level at a time, every batch entry at once.
+
+    Parameters
+    ----------
+    sk : Skeleton
+    L : (..., b, d, d) float
+        Local rotations.
+    sigma : (..., b) float
+        Stretches.
+    theta : (..., b, 2) float
+        Twist angles (radians) at each bone's start and end.
+    D : (..., b, d) float
+        Offsets of the bones' starts (see :meth:`Pose.local`).
+
+    Returns
+    -------
+    R : (..., b, d, d) float
+        World rotations ``R_i``.
+    origins : (..., b, d) float
+        Posed starts ``a'_i``.
+    """
+    L = np.asarray(L, dtype=float)
+    sigma = np.asarray(sigma, dtype=float)
+    D = np.asarray(D, dtype=float)
+    theta = np.asarray(theta, dtype=float)
+    A, vec = sk.A, sk.B - sk.A
+    R = np.empty(L.shape)
+    O = np.empty(D.shape)
+    levels = sk.levels()
+    r = levels[0]
+    R[..., r, :, :] = L[..., r, :, :]
+    O[..., r, :] = A[r] + D[..., r, :]
+    for idx in levels[1:]:
+        p = sk.parents[idx]
+        F = _hang_frames(sk, R, theta, idx)
+        rel = (sk.hang[idx, None] * (sigma[..., p, None] - 1) * vec[p] + (A[idx] - A[p])
+               + D[..., idx, :])
+        O[..., idx, :] = O[..., p, :] + np.einsum("...bij,...bj->...bi", F, rel)
+        R[..., idx, :, :] = F @ L[..., idx, :, :]
+    return R, O
+
+
+def local_arrays(sk: Skeleton, R, origins, sigma, theta) -> tuple[np.ndarray, np.ndarray]:
+    """Poses (batched over leading axes) in the local frame: the inverse of
+    :func:`fk_arrays`. See :meth:`Pose.local`.
+
+    Returns
+    -------
+    L : (..., b, d, d) float
+    D : (..., b, d) float
+    """
+    R = np.asarray(R, dtype=float)
+    O = np.asarray(origins, dtype=float)
+    sigma = np.asarray(sigma, dtype=float)
+    A, vec = sk.A, sk.B - sk.A
+    L = R.copy()
+    D = O - A
+    idx = np.flatnonzero(sk.parents >= 0)
+    if idx.size:
+        p = sk.parents[idx]
+        F = _hang_frames(sk, R, theta, idx)
+        Ft = np.swapaxes(F, -1, -2)
+        L[..., idx, :, :] = Ft @ R[..., idx, :, :]
+        D[..., idx, :] = (np.einsum("...bij,...bj->...bi", Ft, O[..., idx, :] - O[..., p, :])
+                          - sk.hang[idx, None] * (sigma[..., p, None] - 1) * vec[p]
+                          - (A[idx] - A[p]))
+    return L, D
+
+
+def joint_twists(sk: Skeleton, twist) -> np.ndarray:
+    """(..., b, 2) bone twists from (..., j) per-joint twists (see forward_kinematics)."""
+    tau = np.asarray(twist, dtype=float)
+    ends = np.zeros(sk.n_joints, dtype=bool)
+    ends[sk.BE[:, 1]] = True
+    theta = np.zeros(tau.shape[:-1] + (sk.n_bones, 2))
+    free = ~ends[sk.BE[:, 0]]
+    theta[..., free, 0] = tau[..., sk.BE[free, 0]]
+    theta[..., 1] = theta[..., 0] + tau[..., sk.BE[:, 1]]
+    return theta
+
+
 def forward_kinematics(sk: Skeleton, rotations=None, stretch=None, twist=None,
                        translation=None) -> Pose:
-    """Pose from local rotations, per-bone stretch, per-joint twist and a root translation.
+    """Pose from local rotations, per-bone stretch, per-joint twist and a translation.
 
     Parameters
     ----------
     sk : Skeleton
     rotations : (b, d, d) float, optional
-        Local rotation of each bone about its start joint, in its parent's frame
-        (world frame for roots); identity by default. 2D also accepts (b,) angles.
+        Local rotation of each bone about its start joint, in the frame its parent
+        carries it in (world frame for roots); identity by default. 2D also accepts
+        (b,) angles.
     stretch : (b,) float, optional
-        Per-bone stretch sigma_i; children start at the stretched parent's end.
+        Per-bone stretch sigma_i; connected children start at the stretched parent's
+        end, offset children where they hang on it (DESIGN §2).
     twist : (j,) float, optional
         Per-joint twist (radians, 3D only). A twist at joint J grows along the bone
         ending at J (theta_b) and is carried rigidly by every bone below J, because
         children inherit the parent's full end rotation ``R_p K_p(1)``.
-        At a root joint (where no bone ends) it turns the bones starting there rigidly.
-    translation : (d,) float, optional
-        Added to the start of every root bone.
+        At a joint where no bone ends (a root's, an offset child's) it turns the
+        bones starting there rigidly.
+    translation : (d,) or (b, d) float, optional
+        (d,): added to the start of every root bone. (b, d): each bone's own offset,
+        world for a root, in the frame its parent carries it in for a child (an
+        animated joint translation of glTF/BVH).
+
+    Examples
+    --------
+    Turning the hips turns the leg hanging off them (an offset child):
+
+    >>> import numpy as np
+    >>> import stbs
+    >>> sk = stbs.Skeleton([[0, 0, 0], [0, 1, 0], [0.2, 0, 0], [0.2, -1, 0]],
+    ...                    [[0, 1], [2, 3]], P=[-1, 0])
+    >>> Rz = np.array([[0, -1, 0], [1, 0, 0], [0, 0, 1.0]])
+    >>> pose = stbs.forward_kinematics(sk, rotations=[Rz, np.eye(3)])
+    >>> np.round(pose.origins[1], 12).tolist(), np.round(pose.ends[1], 12).tolist()
+    ([0.0, 0.2, 0.0], [1.0, 0.2, 0.0])
     """
     sk = _check_skeleton(sk)
     b, d, j = sk.n_bones, sk.dim, sk.n_joints
@@ -222,31 +397,19 @@ def forward_kinematics(sk: Skeleton, rotations=None, stretch=None, twist=None,
     if d == 2 and np.any(tau != 0):
         raise ValueError(f"twist must be 0 in 2D, got {tau[np.flatnonzero(tau)[0]]:.6g} "
                          f"at joint {int(np.flatnonzero(tau)[0])}")
-    shift = np.zeros(d) if translation is None else _checks.real_array(
-        "translation", translation, shape=(d,))
+    D = np.zeros((b, d))
+    if translation is not None:
+        tr = np.asarray(translation, dtype=float) if not isinstance(
+            translation, np.ndarray) else translation
+        if np.ndim(tr) == 2:
+            D = _checks.real_array("translation", tr, shape=(b, d)).copy()
+        else:
+            D[sk.roots] = _checks.real_array("translation", tr, shape=(d,))
     if np.any(sigma <= 0):
         i = int(np.argmin(sigma))
         raise ValueError(f"stretch must be > 0, got {sigma[i]:.6g} for bone {i} ({sk.names[i]!r})")
-    A, vec = sk.A, sk.B - sk.A
-    R = np.empty((b, d, d))
-    origins = np.empty((b, d))
-    # Twists do not depend on the rotations: theta_a is the root joint's twist (roots
-    # only), theta_b adds the end joint's; all end twists K_i(1) in one batch.
-    theta = np.zeros((b, 2))
-    roots = sk.parents < 0
-    theta[roots, 0] = tau[sk.BE[roots, 0]]
-    theta[:, 1] = theta[:, 0] + tau[sk.BE[:, 1]]
-    K = tf.axis_angle_to_matrix(sk.axes, theta[:, 1]) if d == 3 else None
-    G = np.empty((b, d, d))  # full end rotation R_i K_i(1), inherited by children
-    for i in sk.order:
-        p = sk.parents[i]
-        if p < 0:
-            R[i] = L[i]
-            origins[i] = A[i] + shift
-        else:
-            R[i] = G[p] @ L[i]
-            origins[i] = origins[p] + sigma[p] * (R[p] @ vec[p])
-        G[i] = R[i] @ K[i] if d == 3 else R[i]
+    theta = joint_twists(sk, tau)
+    R, origins = fk_arrays(sk, L, sigma, theta, D)
     return Pose(sk, rotations=R, origins=origins, stretch=sigma, twist=theta)
 
 

@@ -1,4 +1,4 @@
-"""The rig's skeleton: joints ``C`` and directed bones ``BE``."""
+"""The rig's skeleton: joints ``C``, directed bones ``BE`` and parent bones ``P``."""
 
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ from . import _checks
 
 
 class Skeleton:
-    """A forest of directed bones between joints.
+    """A forest of directed bones between joints, with a parent bone for each bone.
 
     Parameters
     ----------
@@ -20,11 +20,24 @@ class Skeleton:
         Bones as directed joint pairs: bone i runs from ``C[BE[i, 0]]`` to ``C[BE[i, 1]]``.
     names : sequence of b str, optional
         Bone names (unique). Defaults to ``"bone0"``, ``"bone1"``, ...
+    P : (b,) int, optional
+        Parent bone of each bone, -1 for roots. A child whose start joint is its
+        parent's end joint is *connected*; any other child is an *offset child*
+        (shoulders off the chest, legs off the hips), carried by its parent's map at
+        the point where it hangs (DESIGN §2). Default: inferred from shared joints,
+        the parent of a bone being the bone that ends at its start joint (so every
+        child is connected).
 
     Attributes
     ----------
     parents : (b,) int
-        Parent bone (the bone whose end joint is this bone's start joint), -1 for roots.
+        Parent bone, -1 for roots (``P``).
+    connected : (b,) bool
+        True for a child that starts at its parent's end joint.
+    hang : (b,) float
+        ``t_c`` in [0, 1]: where a child hangs on its parent bone, the projection of
+        its start on the parent bone clamped to [0, 1]; 1 for a connected child, 0 for
+        a root.
     lengths : (b,) float
         Rest bone lengths ``|b_i - a_i|``.
     axes : (b, d) float
@@ -35,15 +48,28 @@ class Skeleton:
         Bones without a parent.
     order : (b,) int
         A topological order: every bone comes after its parent.
+    depth : (b,) int
+        Number of ancestors of each bone (0 for a root).
 
     Raises
     ------
     ValueError
         For joint indices out of range, a bone listed twice (in either direction),
-        a zero-length bone, a bone with two parents, or a cycle; the message names the bone.
+        a zero-length bone, a bone with two parents (without ``P``), a parent out of
+        range or a cycle; the message names the bone.
+
+    Examples
+    --------
+    A hip bone with a leg hanging off its start (an offset child):
+
+    >>> import stbs
+    >>> sk = stbs.Skeleton([[0, 0, 0], [0, 1, 0], [0.2, 0, 0], [0.2, -1, 0]],
+    ...                    [[0, 1], [2, 3]], names=["hips", "leg"], P=[-1, 0])
+    >>> sk.parents.tolist(), sk.connected.tolist(), sk.hang.tolist()
+    ([-1, 0], [False, False], [0.0, 0.0])
     """
 
-    def __init__(self, C, BE, names: Sequence[str] | None = None):
+    def __init__(self, C, BE, names: Sequence[str] | None = None, P=None):
         C = _checks.real_array("C", C, ndim=2)
         if C.shape[1] not in (2, 3):
             raise ValueError(f"C must have shape (j, 2) or (j, 3), got {C.shape}")
@@ -86,17 +112,27 @@ class Skeleton:
             i = int(zero[0])
             raise ValueError(f"BE: {label(i)} has zero length; STBS needs a bone direction "
                              "(merge the joints or drop the bone)")
-        ends_at: dict[int, int] = {}
-        for i, e in enumerate(BE[:, 1].tolist()):
-            ends_at.setdefault(e, i)
-        parents = np.full(b, -1, dtype=np.int64)
-        for i, s in enumerate(BE[:, 0].tolist()):
-            enders = np.flatnonzero(BE[:, 1] == s)
-            if enders.size > 1:
-                raise ValueError(f"BE: {label(i)} has {enders.size} parents (bones "
-                                 f"{', '.join(map(str, enders.tolist()))} all end at joint {s})")
-            if enders.size == 1:
-                parents[i] = enders[0]
+        if P is None:
+            parents = np.full(b, -1, dtype=np.int64)
+            for i, s in enumerate(BE[:, 0].tolist()):
+                enders = np.flatnonzero(BE[:, 1] == s)
+                if enders.size > 1:
+                    raise ValueError(
+                        f"BE: {label(i)} has {enders.size} parents (bones "
+                        f"{', '.join(map(str, enders.tolist()))} all end at joint {s}); "
+                        "give P to say which bone is its parent")
+                if enders.size == 1:
+                    parents[i] = enders[0]
+        else:
+            parents = _checks.index_array("P", P, ndim=1, shape=(b,)).astype(np.int64)
+            bad = np.flatnonzero((parents < -1) | (parents >= b))
+            if bad.size:
+                i = int(bad[0])
+                raise ValueError(f"P: {label(i)} has parent {int(parents[i])}, outside "
+                                 f"-1..{b - 1}")
+            own = np.flatnonzero(parents == np.arange(b))
+            if own.size:
+                raise ValueError(f"P: {label(int(own[0]))} is its own parent")
         # Topological order by depth; a cycle shows up as a chain longer than b.
         depth = np.full(b, -1, dtype=np.int64)
         for i in range(b):
@@ -105,21 +141,40 @@ class Skeleton:
             while k >= 0 and depth[k] < 0:
                 chain.append(k)
                 if len(chain) > b:
-                    raise ValueError(f"BE: {label(i)} lies on a cycle of bones")
+                    raise ValueError(f"{'BE' if P is None else 'P'}: {label(i)} lies on a "
+                                     "cycle of bones")
                 k = parents[k]
             base = -1 if k < 0 else depth[k]
             for m, c in enumerate(reversed(chain)):
                 depth[c] = base + 1 + m
+        has = parents >= 0
+        connected = np.zeros(b, dtype=bool)
+        connected[has] = BE[has, 0] == BE[parents[has], 1]
+        # t_c of DESIGN §2: the start's projection on the parent bone, clamped.
+        hang = np.zeros(b)
+        off = has & ~connected
+        if off.any():
+            p = parents[off]
+            rel = C[BE[off, 0]] - C[BE[p, 0]]
+            hang[off] = np.clip(np.einsum("bi,bi->b", rel, vec[p]) / lengths[p] ** 2, 0, 1)
+        hang[connected] = 1.0
         self.parents = parents
+        self.connected = connected
+        self.hang = hang
         self.lengths = lengths
         self.axes = vec / lengths[:, None]
         self.dim = int(C.shape[1])
         self.roots = np.flatnonzero(parents < 0)
         self.order = np.argsort(depth, kind="stable")
         self.depth = depth
-        for arr in (self.C, self.BE, self.parents, self.lengths, self.axes, self.roots,
-                    self.order, self.depth):
+        for arr in (self.C, self.BE, self.parents, self.connected, self.hang, self.lengths,
+                    self.axes, self.roots, self.order, self.depth):
             arr.setflags(write=False)
+
+    @property
+    def P(self) -> np.ndarray:
+        """(b,) parent bone of each bone, -1 for roots (the same array as ``parents``)."""
+        return self.parents
 
     @property
     def n_bones(self) -> int:
@@ -141,6 +196,10 @@ class Skeleton:
         """(b, d) rest end joints ``b_i``."""
         return self.C[self.BE[:, 1]]
 
+    def levels(self) -> list[np.ndarray]:
+        """Bones grouped by depth: roots first, then their children, and so on."""
+        return [np.flatnonzero(self.depth == k) for k in range(int(self.depth.max()) + 1)]
+
     def bone_index(self, key: int | str) -> int:
         """Index of a bone given by index (int or digit string) or by name."""
         if isinstance(key, (int, np.integer)) and not isinstance(key, bool):
@@ -157,17 +216,20 @@ class Skeleton:
         return i
 
     def __eq__(self, other: object) -> bool:
-        """Equal joints (exactly), bones and names: poses of equal skeletons compose."""
+        """Equal joints (exactly), bones, parents and names: poses of equal skeletons compose."""
         if self is other:
             return True
         if not isinstance(other, Skeleton):
             return NotImplemented
         return (self.C.shape == other.C.shape and self.BE.shape == other.BE.shape
                 and bool(np.array_equal(self.C, other.C))
-                and bool(np.array_equal(self.BE, other.BE)) and self.names == other.names)
+                and bool(np.array_equal(self.BE, other.BE))
+                and bool(np.array_equal(self.parents, other.parents))
+                and self.names == other.names)
 
     def __hash__(self) -> int:
-        return hash((self.C.shape, self.C.tobytes(), self.BE.tobytes(), tuple(self.names)))
+        return hash((self.C.shape, self.C.tobytes(), self.BE.tobytes(), self.parents.tobytes(),
+                     tuple(self.names)))
 
     def __repr__(self) -> str:
         return (f"Skeleton({self.n_joints} joints, {self.n_bones} bones, {self.dim}D, "

@@ -65,3 +65,39 @@ def test_arrays_are_read_only():
     sk = stbs.Skeleton([[0.0, 0], [1, 0]], [[0, 1]])
     with pytest.raises(ValueError):
         sk.C[0, 0] = 5
+
+
+def test_offset_children_from_P():
+    # hips -> spine (connected), two legs hanging off the hips' start (offset), an arm
+    # hanging half way up the spine
+    C = [[0, 0, 0], [0, 1, 0], [0, 2, 0], [0.2, 0, 0], [0.2, -1, 0], [-0.2, 0, 0],
+         [-0.2, -1, 0], [0.3, 1.5, 0], [1.3, 1.5, 0]]
+    BE = [[0, 1], [1, 2], [3, 4], [5, 6], [7, 8]]
+    sk = stbs.Skeleton(C, BE, P=[-1, 0, 0, 0, 1])
+    assert sk.parents.tolist() == [-1, 0, 0, 0, 1]
+    assert sk.connected.tolist() == [False, True, False, False, False]
+    np.testing.assert_allclose(sk.hang, [0, 1, 0, 0, 0.5])
+    assert sk.depth.tolist() == [0, 1, 1, 1, 2] and sk.roots.tolist() == [0]
+    assert [lv.tolist() for lv in sk.levels()] == [[0], [1, 2, 3], [4]]
+    # P is part of equality
+    assert sk != stbs.Skeleton(C, BE)
+
+
+@pytest.mark.parametrize("P, match", [
+    ([-1, 0, 5], r"P: bone 2 .* has parent 5, outside -1..2"),
+    ([-1, 1, 0], r"P: bone 1 .* is its own parent"),
+    ([2, 0, 1], r"P: bone 0 .* lies on a cycle"),
+    ([-1, 0], r"P must have shape"),
+])
+def test_bad_P_is_named(P, match):
+    C = [[0, 0, 0], [1, 0, 0], [2, 0, 0], [3, 0, 0]]
+    with pytest.raises(ValueError, match=match):
+        stbs.Skeleton(C, [[0, 1], [1, 2], [2, 3]], P=P)
+
+
+def test_two_bones_ending_at_a_joint_need_P():
+    C = [[0, 0, 0], [2, 0, 0], [1, 1, 0], [1, 2, 0]]
+    with pytest.raises(ValueError, match="give P"):
+        stbs.Skeleton(C, [[0, 2], [1, 2], [2, 3]])
+    sk = stbs.Skeleton(C, [[0, 2], [1, 2], [2, 3]], P=[-1, -1, 0])
+    assert sk.connected.tolist() == [False, False, True]

@@ -88,19 +88,21 @@ def test_clip_to_dict_in_radians_and_joints_form():
     assert np.allclose(obj["keys"][1]["pose"]["joints"], [[0, 0, 0], [0, 1, 0], [0, 3, 0]],
                        atol=1e-12, rtol=0)
     assert obj["keys"][1]["pose"]["degrees"] is False
-    # an interpolated pose that parts the joint is not in the fk form
-    parted = stbs.Clip([(0.0, clip.pose(0.5))])
-    with pytest.raises(ValueError, match=r"clip keys\[0\] \(time 0\)"):
-        clip_to_dict(parted, form="fk")
+    # a pose the joints form cannot describe (a roll about the bone) names its key
+    rolled = stbs.Pose.from_local(sk, rotations=stbs.transforms.axis_angle_to_matrix(
+        np.array(sk.axes), np.full(sk.n_bones, 0.5)))
+    with pytest.raises(ValueError, match=r"clip keys\[1\] \(time 2\)"):
+        clip_to_dict(stbs.Clip([(0.0, clip.pose(0.5)), (2.0, rolled)]), form="joints")
 
 
 def test_a_failed_write_leaves_the_old_file(tmp_path):
     sk = _arm()
     path = tmp_path / "c.json"
     path.write_text("old")
-    parted = stbs.Clip([(0.0, read_clip(CLIP, sk).pose(0.5))])
+    rolled = stbs.Pose.from_local(sk, rotations=stbs.transforms.axis_angle_to_matrix(
+        np.array(sk.axes), np.full(sk.n_bones, 0.5)))
     with pytest.raises(ValueError):
-        write_clip(path, parted, form="fk")
+        write_clip(path, stbs.Clip([(0.0, rolled)]), form="joints")
     assert path.read_text() == "old"
 
 

@@ -97,18 +97,15 @@ def test_root_start_twist(sk3):
     np.testing.assert_allclose(got.rotations[1], rot([1, 0, 0], 90), atol=1e-12)
 
 
-def test_root_start_twist_must_be_shared_by_bones_at_that_joint(sk3):
-    with pytest.raises(ValueError, match=r"\"twist\" bone 'upper'.*root joint 0.*bone 3 "
-                                         r"\('other'\)"):
-        read_pose({"twist": {"upper": [30, 90]}}, sk3)
-    with pytest.raises(ValueError, match="bone 3"):
-        read_pose({"twist": {"upper": [30, 90], "other": [10, 0]}}, sk3)
-
-
-def test_start_twist_on_non_root_bone_is_an_error(sk3):
-    with pytest.raises(ValueError, match=r"\"twist\" bone 'hand'.*only allowed on a root "
-                                         r"bone.*end of bone 1 \('forearm'\)"):
-        read_pose({"twist": {"hand": [10, 20]}}, sk3)
+def test_a_start_twist_is_the_bone_own_twist(sk3):
+    # a start twist on a root turns that root only; on a child it turns the child about
+    # its axis on top of the frame it inherits
+    got = read_pose({"twist": {"upper": [30, 90], "hand": [10, 20]}}, sk3)
+    np.testing.assert_allclose(got.twist[0], [30 * D, 90 * D], atol=1e-15)
+    np.testing.assert_allclose(got.twist[2], [10 * D, 20 * D], atol=1e-15)
+    np.testing.assert_allclose(got.twist[3], [0, 0], atol=1e-15)
+    want = stbs.Pose.from_local(sk3, twist=got.twist)
+    assert_pose_equal(got, want)
 
 
 def test_2d_rotation_angle_only(sk2):
@@ -270,20 +267,22 @@ def test_write_pose_fk_round_trip(tmp_path, degrees):
     _same(read_pose(path, sk), pose)
 
 
-def test_write_pose_joints_form_when_forward_kinematics_cannot(tmp_path):
+def test_write_pose_fk_form_describes_every_pose(tmp_path):
     from stbs.io import pose_to_dict, write_pose
 
     sk = _chain3d()
     Cp = np.array(sk.C) + np.random.default_rng(1).normal(scale=0.2, size=sk.C.shape)
     theta = np.zeros((4, 2))
-    theta[2] = np.radians([45, 200])        # a non-root start twist: not fk-expressible
+    theta[2] = np.radians([45, 200])        # a non-root start twist
     pose = stbs.Pose.from_joints(sk, Cp, twist=theta)
     obj = pose_to_dict(pose)
-    assert "joints" in obj and obj["twist"] == {"hand": [pytest.approx(45), pytest.approx(200)]}
+    assert "rotate" in obj and obj["twist"] == {"hand": [pytest.approx(45), pytest.approx(200)]}
     write_pose(tmp_path / "j.json", pose)
     _same(read_pose(tmp_path / "j.json", sk), pose)
-    with pytest.raises(ValueError, match="bone 2 .'hand'. twists at its start but is not a root"):
-        pose_to_dict(pose, form="fk")
+    obj = pose_to_dict(pose, form="joints")
+    assert "joints" in obj
+    write_pose(tmp_path / "k.json", pose, form="joints")
+    _same(read_pose(tmp_path / "k.json", sk), pose)
 
 
 def test_write_pose_2d_and_rest(tmp_path):
@@ -298,7 +297,7 @@ def test_write_pose_2d_and_rest(tmp_path):
     _same(read_pose(tmp_path / "q.json", sk), pose)
 
 
-def test_write_pose_refuses_what_no_form_describes_and_leaves_files_alone(tmp_path):
+def test_write_pose_parted_and_rolled_poses_and_leaves_files_alone(tmp_path):
     from stbs.io import pose_to_dict, write_pose
 
     sk = _chain3d()
@@ -307,14 +306,18 @@ def test_write_pose_refuses_what_no_form_describes_and_leaves_files_alone(tmp_pa
     origins[1] += [0, 0, 0.3]               # the forearm leaves the elbow
     rolled = stbs.transforms.axis_angle_to_matrix(np.array(sk.axes), np.full(4, 0.5))
     pose = stbs.Pose(sk, rotations=rolled, origins=origins)
-    with pytest.raises(ValueError, match="neither pose-file form") as exc:
-        pose_to_dict(pose)
-    assert "does not start at the posed end" in str(exc.value)
-    assert "joint 1" in str(exc.value)
+    obj = pose_to_dict(pose)
+    # the forearm's offset from the elbow, in the frame the upper bone carries it in
+    assert sk.names[1] in obj["translate"] and sk.names[0] not in obj["translate"]
+    write_pose(tmp_path / "p.json", pose)
+    _same(read_pose(tmp_path / "p.json", sk), pose)
+    # the joints form cannot say it, and a failed write leaves the file alone
+    with pytest.raises(ValueError, match="joints form"):
+        pose_to_dict(pose, form="joints")
     target = tmp_path / "keep.json"
     target.write_text("{}")
     with pytest.raises(ValueError):
-        write_pose(target, pose)
+        write_pose(target, pose, form="joints")
     assert target.read_text() == "{}"
     with pytest.raises(ValueError, match="form must be one of auto, fk, joints"):
         pose_to_dict(rest, form="bvh")

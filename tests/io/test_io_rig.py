@@ -63,7 +63,9 @@ def test_documented_keys_and_version(tmp_path):
     p = tmp_path / "r.npz"
     save_rig(p, small_rig())
     raw = raw_arrays(p)
-    assert set(raw) == {"stbs_rig_version", "V", "F", "C", "BE", "names", "W", "E", "meta_json"}
+    assert set(raw) == {"stbs_rig_version", "V", "F", "C", "BE", "P", "names", "W", "E",
+                        "meta_json"}
+    assert raw["P"].tolist() == [-1, 0]
     assert raw["stbs_rig_version"].shape == () and int(raw["stbs_rig_version"]) == 1 == RIG_VERSION
     assert raw["names"].dtype.kind == "U"
 
@@ -256,3 +258,16 @@ def test_damaged_archive_member(tmp_path):
     p.write_bytes(bytes(data))
     with pytest.raises(FormatError, match="r.npz: expected"):
         load_rig(p)
+
+
+def test_offset_children_round_trip(tmp_path):
+    # a leg hanging off the hips' start: the parent array P is kept
+    import stbs
+    sk = stbs.Skeleton([[0, 0, 0], [0, 1, 0], [0.2, 0, 0], [0.2, -1, 0]], [[0, 1], [2, 3]],
+                       names=["hips", "leg"], P=[-1, 0])
+    rig = stbs.Rig(V=[[0, 0.5, 0], [0.2, -0.5, 0]], W=np.eye(2), skeleton=sk)
+    save_rig(tmp_path / "o.npz", rig)
+    back = load_rig(tmp_path / "o.npz")
+    assert back.skeleton == sk and back.skeleton.parents.tolist() == [-1, 0]
+    # without P the leg would be a root
+    assert stbs.Skeleton(sk.C, sk.BE).parents.tolist() == [-1, -1]

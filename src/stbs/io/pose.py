@@ -24,9 +24,11 @@ Forward-kinematics form (local rotations, as :func:`stbs.forward_kinematics`)::
     {"rotate": {"2": {"axis": [0, 1, 0], "angle": 90}}, "stretch": {"4": 1.5},
      "twist": {"forearm": [0, 180]}, "translate": [0, 0, 0], "degrees": true}
 
-All keys are optional; ``{}`` is the rest pose. The pose is
-:func:`stbs.forward_kinematics`: children start at their parent's posed end and
-inherit the parent's full end rotation, twist included.
+All keys are optional; ``{}`` is the rest pose. The pose is forward kinematics
+(:meth:`stbs.Pose.from_local`): a child hangs in its parent's posed frame (at its
+parent's end, or where it hangs on its parent for an offset child) and inherits the
+parent's rotation and twist there. Every pose has this form exactly
+(:meth:`stbs.Pose.local`).
 
 ``rotate``
     ``{bone: {"axis": [x, y, z], "angle": a}}`` in 3D (axis non-zero, any
@@ -36,29 +38,23 @@ inherit the parent's full end rotation, twist included.
 ``stretch``
     ``{bone: sigma}`` with sigma > 0, posed length / rest length. Unlisted: 1.
 ``twist`` (3D only)
-    ``{bone: [start, end]}``, *local* twists: relative to the frame the bone
-    inherits from its parent. They map onto forward kinematics' per-joint twist
-    as follows:
-
-    - ``end`` is the twist at the bone's end joint. It grows along the bone
-      (theta_b = ``end``) and every bone below that joint is turned rigidly by
-      it (the paper's Fig. 5: ``{"forearm": [0, 180]}`` spreads 180 degrees along
-      the forearm and turns the hand by 180 degrees).
-    - ``start`` must be 0 except on a root bone, where it is the twist at the
-      root joint: the root bone turns rigidly by ``start`` and its twist grows
-      to ``end`` (theta = ``[start, end]``). A non-root bone cannot have its own
-      start twist, because its start is its parent's end, already twisted by
-      the parent's ``end`` (give the twist there instead). When several root
-      bones start at one joint, a non-zero ``start`` turns all of them, so all
-      of them must be listed with the same ``start``.
+    ``{bone: [start, end]}``: the bone's own twist angles theta_a, theta_b about its
+    axis, on top of the frame it inherits. The twist grows from ``start`` to ``end``
+    along the bone, and every bone hanging below is turned rigidly by the twist
+    where it hangs (the paper's Fig. 5: ``{"forearm": [0, 180]}`` spreads 180
+    degrees along the forearm and turns the hand by 180 degrees). A ``start`` turns
+    the whole bone about its axis first.
 ``translate``
-    (d,) offset added to every root bone's start. Default 0.
+    ``[x, y, z]`` (d values): added to every root bone's start. Or
+    ``{bone: [x, y, z]}``: each listed bone's start moved by that offset, in the
+    frame its parent carries it in (world for a root), as an animated joint
+    translation does. Default 0.
 
 Errors are :class:`ValueError` naming the file (or ``pose`` for a dict), the
 key and the bone, what was expected and what was found: unknown keys, a
 mixture of both forms, a bone that does not exist or is listed twice, wrong
 vector lengths, non-numbers, NaN or infinity, a stretch <= 0, a zero axis, a
-non-zero twist on a 2D skeleton, and a start twist on a non-root bone.
+non-zero twist on a 2D skeleton.
 """
 
 from __future__ import annotations
@@ -260,11 +256,19 @@ class _Reader:
             if sigma[i] <= 0:
                 raise self.fail(label, f"stretch must be > 0 (posed length / rest length), "
                                        f"found {_show(v)}")
-        tau = self.joint_twist(self.twist_pairs(obj.get("twist", {})))
-        shift = None
+        theta = np.zeros((b, 2))
+        for i, (_, s, e) in self.twist_pairs(obj.get("twist", {})).items():
+            theta[i] = (s, e)
+        D = np.zeros((b, d))
         if "translate" in obj:
-            shift = self.vector('"translate"', obj["translate"], d, f"a {d}D offset")
-        return forward_kinematics(sk, rotations=L, stretch=sigma, twist=tau, translation=shift)
+            tr = obj["translate"]
+            if isinstance(tr, Mapping):
+                for i, (label, v) in self.table("translate", tr).items():
+                    D[i] = self.vector(label, v, d, f"a {d}D offset")
+            else:
+                D[sk.roots] = self.vector('"translate"', tr, d,
+                                          f"a {d}D offset or {{bone: offset}}")
+        return Pose.from_local(sk, L, stretch=sigma, twist=theta, offsets=D)
 
     def rotation(self, label: str, spec: Any) -> np.ndarray:
         d = self.sk.dim
@@ -287,28 +291,6 @@ class _Reader:
             raise self.fail(f'{label} "axis"', "expected a non-zero axis, found [0, 0, 0]")
         return tf.axis_angle_to_matrix(axis, angle)
 
-    def joint_twist(self, pairs: dict[int, tuple[str, float, float]]) -> np.ndarray:
-        """Per-bone local ``[start, end]`` -> forward kinematics' per-joint twist (j,)."""
-        sk = self.sk
-        tau = np.zeros(sk.n_joints)
-        for i, (label, s, e) in pairs.items():
-            a, b = (int(x) for x in sk.BE[i])
-            if s != 0 and sk.parents[i] >= 0:
-                p = int(sk.parents[i])
-                raise self.fail(label, f"a start twist is only allowed on a root bone; bone "
-                                f"{i} ({sk.names[i]!r}) starts at the end of bone {p} "
-                                f"({sk.names[p]!r}) and inherits its end twist, so give "
-                                f"the twist as that bone's end")
-            if s != 0:
-                for k in np.flatnonzero(sk.BE[:, 0] == a).tolist():
-                    if k != i and (k not in pairs or pairs[k][1] != s):
-                        raise self.fail(label, f"a start twist at root joint {a} turns every "
-                                        f"bone starting there; list bone {k} "
-                                        f"({sk.names[k]!r}) with the same start as bone {i}")
-                tau[a] = s
-            tau[b] = e - s
-        return tau
-
 
 # ----------------------------------------------------------------------------- writing
 
@@ -323,10 +305,8 @@ def pose_to_dict(pose: Pose, *, form: str = "auto", degrees: bool = True) -> dic
     ----------
     pose : Pose
     form : {"auto", "fk", "joints"}
-        ``"fk"``: the forward-kinematics form (local rotations, stretch, local twists,
-        translation), which exists when every child bone starts at its parent's
-        posed end, every root moves by the same translation, and only root bones
-        twist at their start. ``"joints"``: the posed joints and absolute twists,
+        ``"fk"``: the forward-kinematics form (local rotations, stretch, twists,
+        translations), which describes every pose exactly. ``"joints"``: the posed joints and absolute twists,
         which exists when shared joints agree and every rotation is the smallest one
         from the rest to the posed direction (no roll about the bone). ``"auto"``:
         the first of the two that describes the pose exactly.
@@ -413,33 +393,8 @@ def _fk_dict(pose: Pose, scale: float) -> tuple[dict | None, str]:
     sk = pose.skeleton
     b, d = sk.n_bones, sk.dim
     tol = _tol(pose)
-    R, O, sig, th = pose.rotations, pose.origins, pose.stretch, pose.twist
-    vec = sk.B - sk.A
-    ends = O + sig[:, None] * np.einsum("bij,bj->bi", R, vec)
-    roots = sk.roots
-    shift = O[roots[0]] - sk.A[roots[0]]
-    G = np.empty((b, d, d))
-    L = np.empty((b, d, d))
-    for i in sk.order:
-        p = sk.parents[i]
-        if p < 0:
-            if np.abs(O[i] - sk.A[i] - shift).max() > tol:
-                return None, (f"root bones {roots[0]} and {i} ({sk.names[i]!r}) move by "
-                              "different translations")
-            same = np.flatnonzero((sk.BE[:, 0] == sk.BE[i, 0]) & (sk.parents < 0))
-            if np.abs(th[same, 0] - th[i, 0]).max() > 1e-12:
-                return None, (f"root bones starting at joint {sk.BE[i, 0]} have different "
-                              "start twists")
-            L[i] = R[i]
-        else:
-            if np.abs(O[i] - ends[p]).max() > tol:
-                return None, (f"bone {i} ({sk.names[i]!r}) does not start at the posed end "
-                              f"of its parent bone {p}")
-            if abs(th[i, 0]) > 1e-12:
-                return None, (f"bone {i} ({sk.names[i]!r}) twists at its start but is not "
-                              "a root")
-            L[i] = G[p].T @ R[i]
-        G[i] = R[i] @ tf.axis_angle_to_matrix(sk.axes[i], th[i, 1]) if d == 3 else R[i]
+    L, D = pose.local()
+    sig, th = pose.stretch, pose.twist
     obj: dict[str, Any] = {}
     rotate = {}
     for i in range(b):
@@ -460,8 +415,13 @@ def _fk_dict(pose: Pose, scale: float) -> tuple[dict | None, str]:
              for i in range(b) if np.any(th[i] != 0)}
     if twist:
         obj["twist"] = twist
-    if np.any(shift != 0):
-        obj["translate"] = [_num(x) for x in shift]
+    moved = np.flatnonzero(np.abs(D).max(axis=1) > tol)
+    roots = sk.roots
+    if moved.size and np.isin(moved, roots).all() and np.abs(
+            D[roots] - D[roots[0]]).max() <= tol:
+        obj["translate"] = [_num(x) for x in D[roots[0]]]
+    elif moved.size:
+        obj["translate"] = {sk.names[i]: [_num(x) for x in D[i]] for i in moved.tolist()}
     return obj, ""
 
 

@@ -17,6 +17,7 @@ key                        shape, dtype      required  meaning
 ``C``                      (j, d) float64    yes       rest joint positions
 ``BE``                     (b, 2) int64      yes       bones as 0-based joint pairs
 ``names``                  (b,) unicode      no        bone names
+``P``                      (b,) int64        no [3]_   parent bone of each bone, -1 for roots
 ``W``                      (n, b) float64    yes [1]_  bone weights, dense
 ``W_data``                 (nnz,) float64    yes [1]_  bone weights, sparse CSR: values
 ``W_indices``              (nnz,) int64      yes [1]_  column (bone) index of each value
@@ -32,6 +33,9 @@ key                        shape, dtype      required  meaning
    keys) is present; the same holds for ``E`` when it is stored.
 .. [2] ``texture`` and ``UV`` come together (a rig made from an image, see
    :class:`stbs.Rig`); readers of this version that predate them ignore both.
+.. [3] Without ``P`` the parents are inferred from shared joints (every child starts
+   at its parent's end joint); with it a child may hang anywhere on its parent (an
+   offset child, as glTF, FBX and BVH hierarchies have).
 
 An absent optional key means None (no ``F``, no ``T``, default names, no
 ``E``, empty metadata). Readers check the version first and ignore keys not
@@ -101,6 +105,7 @@ def save_rig(path: str | os.PathLike, rig: Rig) -> None:
         "V": rig.V,
         "C": rig.C,
         "BE": rig.BE,
+        "P": rig.skeleton.parents,
     }
     if rig.F is not None:
         out["F"] = rig.F
@@ -225,7 +230,8 @@ def _load(p, z: _Arrays, keys: set) -> Rig:
         if k not in keys:
             raise FormatError(p, f"required key '{k}'", f"keys {sorted(keys)}")
     arrays: dict[str, Any] = {}
-    for k, kinds in (("V", "f"), ("C", "f"), ("BE", "iu"), ("F", "iu"), ("T", "iu")):
+    for k, kinds in (("V", "f"), ("C", "f"), ("BE", "iu"), ("P", "iu"), ("F", "iu"),
+                     ("T", "iu")):
         if k in keys:
             a = z[k]
             if a.dtype.kind not in kinds:
@@ -259,4 +265,5 @@ def _load(p, z: _Arrays, keys: set) -> Rig:
                 raise FormatError(p, f"'{k}' of {want} dtype", f"dtype {a.dtype}")
             picture[k] = a
     return Rig(V=arrays["V"], F=arrays.get("F"), T=arrays.get("T"), C=arrays["C"],
-               BE=arrays["BE"], names=names, W=W, E=E, meta=meta, **picture)
+               BE=arrays["BE"], P=arrays.get("P"), names=names, W=W, E=E, meta=meta,
+               **picture)

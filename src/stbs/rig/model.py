@@ -90,6 +90,8 @@ class Rig:
         Bones as joint pairs; with ``C`` they must form a valid :class:`stbs.Skeleton`.
     names : sequence of b str, optional
         Bone names (with ``C`` and ``BE``; a ``skeleton`` brings its own).
+    P : (b,) int, optional
+        Parent bones (with ``C`` and ``BE``; see :class:`stbs.Skeleton`).
     F : (f, 3) int, optional
         Triangles.
     T : (t, 4) int, optional
@@ -136,13 +138,13 @@ class Rig:
     """
 
     def __init__(self, *, V, W, skeleton: Skeleton | None = None, C=None, BE=None,
-                 names=None, F=None, T=None, E=None, meta: dict | None = None,
+                 names=None, P=None, F=None, T=None, E=None, meta: dict | None = None,
                  texture=None, UV=None):
         V = _checks.vertices(V)
         n, d = V.shape
         if skeleton is not None:
-            if C is not None or BE is not None or names is not None:
-                raise TypeError("give the skeleton as skeleton= or as C, BE (and names), "
+            if C is not None or BE is not None or names is not None or P is not None:
+                raise TypeError("give the skeleton as skeleton= or as C, BE (and names, P), "
                                 "not both")
             if not isinstance(skeleton, Skeleton):
                 raise TypeError(f"skeleton must be a stbs.Skeleton, got "
@@ -152,7 +154,7 @@ class Rig:
         else:
             if C is None or BE is None:
                 raise TypeError("a Rig needs its skeleton: skeleton=, or C and BE")
-            sk = Skeleton(C, BE, names)
+            sk = Skeleton(C, BE, names, P=P)
             named = names is not None
         if sk.dim != d:
             raise ValueError(f"C must have {d} columns like V (n, {d}), got {sk.C.shape}")
@@ -200,15 +202,16 @@ class Rig:
     def replace(self, **changes) -> Rig:
         """A new rig with some fields replaced (checked again), e.g. ``rig.replace(E=E2)``.
 
-        The skeleton object is kept unless ``skeleton`` (or ``C``/``BE``/``names``) is
-        among the changes.
+        The skeleton object is kept unless ``skeleton`` (or ``C``/``BE``/``names``/``P``)
+        is among the changes.
         """
         fields = dict(V=self.V, F=self.F, T=self.T, W=self.W, E=self.E, meta=self.meta,
                       texture=self.texture, UV=self.UV)
-        if not ({"skeleton", "C", "BE", "names"} & changes.keys()):
+        if not ({"skeleton", "C", "BE", "names", "P"} & changes.keys()):
             fields["skeleton"] = self._skeleton
         elif "skeleton" not in changes:
-            fields.update(C=self.C, BE=self.BE, names=self.names)
+            fields.update(C=self.C, BE=self.BE, names=self.names,
+                          P=None if "BE" in changes else self._skeleton.parents)
         fields.update(changes)
         rig = Rig(**fields)
         if "skeleton" in fields and "names" not in changes:
