@@ -152,6 +152,53 @@ def test_view_examples(tmp_path, args, name, b, extras):
     assert list(tmp_path.iterdir()) == []                           # nothing written
 
 
+def _save_weights(v, W, E):
+    body = np.concatenate([W.ravel(), E.ravel()]).astype("<f4").tobytes()
+    return v.get("/api/save-rig", method="POST", body=body,
+                 headers={"Content-Type": "application/octet-stream", "X-Stbs-Arrays": "W,E",
+                          "X-Stbs-Dtype": "float32"})
+
+
+def test_a_gltf_character_is_saved_as_gltf_with_its_painted_endpoint_weights(shared_data,
+                                                                              tmp_path):
+    from stbs.io import read_rig
+
+    glb = shared_data / "characters" / "gltf" / "CesiumMan.glb"
+    before = glb.read_bytes()
+    with View(glb, "--save-as", tmp_path / "painted.glb", cwd=tmp_path) as v:
+        info = json.loads(v.get("/api/rig")[1])
+        n, b = info["vertices"], info["bones"]
+        assert info["save"] == {"rig": True, "pose": True}
+        W = np.frombuffer(v.get("/api/rig/W.bin")[1], "<f4").reshape(n, b)
+        E = np.random.default_rng(3).uniform(0, 1, (n, b)).astype(np.float32)  # "painted"
+        status, body = _save_weights(v, W, E)
+        assert status == 200, body
+        assert json.loads(body)["path"] == str(tmp_path / "painted.glb")
+        # painted bone weights: the character's file keeps its own skin weights, so no
+        W2 = W.copy()
+        W2[0] = W[0][::-1] if b > 1 else W[0]
+        W2[0] /= W2[0].sum()
+        if np.abs(W2 - W).max() > 1e-3:
+            status, body = _save_weights(v, W2, E)
+            assert status == 409 and "save the rig as .npz" in json.loads(body)["error"]
+        v.stop()
+    assert glb.read_bytes() == before
+    back = read_rig(tmp_path / "painted.glb")
+    Eb = back.E.toarray() if hasattr(back.E, "toarray") else np.asarray(back.E)
+    Wb = back.W.toarray() if hasattr(back.W, "toarray") else np.asarray(back.W)
+    on = Wb > 0
+    assert on.sum() >= n and np.abs(Eb[on] - E[on]).max() < 1e-6
+    # without --save-as a glTF character is saved beside itself as CHAR-edited.glb
+    (tmp_path / "c").mkdir()
+    (tmp_path / "c" / "man.glb").write_bytes(before)
+    with View(tmp_path / "c" / "man.glb", cwd=tmp_path) as v:
+        status, body = v.get("/api/save-rig", method="POST")     # no endpoint weights yet
+        assert status == 409 and "endpoint weights" in json.loads(body)["error"]
+        status, body = _save_weights(v, W, E)
+        assert status == 200 and json.loads(body)["path"] == str(tmp_path / "c" / "man-edited.glb")
+        v.stop()
+
+
 # ---------------------------------------------------------------- bad inputs
 def run(capsys, *argv):
     code = main(["view", "--no-browser", *map(str, argv)])
@@ -168,14 +215,17 @@ def one_error(capsys, *argv, words):
 
 def test_bad_inputs_are_one_line_and_exit_2(capsys, rig_file, tmp_path):
     one_error(capsys, tmp_path / "missing.npz", words="not found")
-    one_error(capsys, tmp_path / "mesh.obj",
-              words="expected a rig (.npz, or a glTF character .gltf .glb), or a MESH")
+    one_error(capsys, tmp_path / "mesh.obj", words="expected a rig (.npz, or a character .gltf")
     one_error(capsys, tmp_path / "missing.obj", tmp_path / "x.tgf", words="not found")
     one_error(capsys, rig_file, "--example", "arm", words="not both")
     one_error(capsys, rig_file, "--bone", "heat", words="--bone applies to MESH SKELETON")
     one_error(capsys, "--example", "arm", "--tol", "1e-3", words="--tol applies")
     one_error(capsys, rig_file, "--port", "70000", words="--port")
-    one_error(capsys, rig_file, "--save-as", tmp_path / "x.txt", words="expected a .npz")
+    one_error(capsys, rig_file, "--save-as", tmp_path / "x.txt",
+              words="expected a rig file (.npz, .glb, .gltf)")
+    one_error(capsys, rig_file, "--skin", "0", words="--skin applies to a character file")
+    one_error(capsys, rig_file, "--mapping", tmp_path / "m.json",
+              words="--mapping applies to --motion CAPTURE.bvh")
     one_error(capsys, rig_file, "--save-as", tmp_path / "no" / "x.npz", words="does not exist")
     one_error(capsys, "--example", "nope", words="invalid choice")
     bad = tmp_path / "bad.npz"

@@ -12,7 +12,7 @@ import pytest
 from viewer_client import bar_rig, post_json, request
 
 import stbs
-from stbs.viewer import ViewerServer
+from stbs.viewer import ViewerServer, clips
 
 KEYS = [
     {"time": 0.0, "pose": {}},
@@ -80,20 +80,90 @@ def test_clip_pose_becomes_the_current_pose(srv):
     r = post_json(srv, "/api/clip/pose", {"clip": CLIP, "time": 0.5})
     assert r.status == 200, r.body
     out = r.json()
-    assert out["time"] == 0.5
-    # halfway between rest and a bent, stretched pose the lower bone's start is
-    # interpolated linearly and leaves the upper bone's end: no pose-file form holds it
-    assert out["exact"] is False and "joints" in out["pose"]
+    assert out["time"] == 0.5 and set(out) == {"pose", "time"}
+    # halfway between rest and a bent, stretched pose: the pose object (the
+    # forward-kinematics form, which holds every pose) reads back to the pose itself
     ref = stbs.io.read_clip(CLIP, srv.rig.skeleton).pose(0.5)
     bones = request(srv, "GET", "/api/pose/bones", token=True).json()
     assert np.abs(np.array(bones["rotations"]) - ref.rotations).max() < 1e-12
     assert np.abs(np.array(bones["origins"]) - ref.origins).max() < 1e-12
     assert request(srv, "GET", "/api/pose", token=True).json() == out["pose"]
-    # on a key: exact, and the pose object reads back to the key's pose
+    back = stbs.io.read_pose(out["pose"], srv.rig.skeleton)
+    assert np.abs(back.origins - ref.origins).max() < 1e-12
+    assert np.abs(back.rotations - ref.rotations).max() < 1e-12
     out = post_json(srv, "/api/clip/pose", {"clip": CLIP, "time": 1.0}).json()
-    assert out["exact"] is True
     back = stbs.io.read_pose(out["pose"], srv.rig.skeleton)
     assert back.stretch.tolist() == pytest.approx([1.0, 2.0])
+
+
+def _frames(r, sk):
+    """The rows of GET /api/clip/ID/frames as (R, O, sigma, theta)."""
+    rows = r.array()
+    k, b, d = rows.shape[0], rows.shape[1], sk.dim
+    assert r.headers["x-stbs-dtype"] == "float64" and rows.shape[2] == d * d + d + 3
+    return (rows[..., :d * d].reshape(k, b, d, d), rows[..., d * d:d * d + d],
+            rows[..., d * d + d], rows[..., d * d + d + 1:])
+
+
+def test_a_held_clip_answers_frames_poses_and_keys_by_id(srv):
+    sk = srv.rig.skeleton
+    r = post_json(srv, "/api/clip", CLIP)
+    assert r.status == 200, r.body
+    out = r.json()
+    cid = out["id"]
+    assert re.fullmatch(r"[0-9a-f]{16}", cid)
+    assert {k: out[k] for k in ("fps", "interpolation", "start", "end", "duration", "keys")} \
+        == {"fps": 4, "interpolation": "linear", "start": 0.0, "end": 1.5, "duration": 1.5,
+            "keys": [0.0, 1.0, 1.5]}
+    assert request(srv, "GET", f"/api/clip/{cid}", token=True).json() == out
+    clip = stbs.io.read_clip(CLIP, sk)
+    times = [0.3, -1, 1.0, 1.2345678901234567, 9]
+    r = request(srv, "GET", f"/api/clip/{cid}/frames?t={','.join(map(repr, times))}",
+                token=True)
+    assert r.status == 200, r.body
+    R, O, sigma, theta = _frames(r, sk)
+    for k, t in enumerate(times):       # the clip's own poses, to rounding
+        ref = clip.pose(t)
+        for a, b in ((R[k], ref.rotations), (O[k], ref.origins), (sigma[k], ref.stretch),
+                     (theta[k], ref.twist)):
+            assert np.abs(a - b).max() < 1e-12
+    out = post_json(srv, f"/api/clip/{cid}/pose", {"time": 0.5}).json()
+    assert out["time"] == 0.5
+    assert np.abs(srv.pose.origins - clip.pose(0.5).origins).max() < 1e-12
+    assert request(srv, "GET", "/api/pose", token=True).json() == out["pose"]
+    keys = request(srv, "GET", f"/api/clip/{cid}/keys", token=True).json()["clip"]
+    back = stbs.io.read_clip(keys, sk)
+    assert back.times.tolist() == [0.0, 1.0, 1.5] and back.fps == 4
+    assert np.abs(back.pose(0.7).origins - clip.pose(0.7).origins).max() < 1e-12
+    # saved by id (at another fps) without sending the clip
+    r = post_json(srv, "/api/save-clip", {"id": cid, "fps": 12, "name": "held.json"})
+    assert r.status == 200, r.body
+    saved = stbs.io.read_clip(srv.pose_folder / "held.json", sk)
+    assert saved.fps == 12 and saved.times.tolist() == [0.0, 1.0, 1.5]
+
+
+def test_the_server_keeps_the_clips_used_last(srv):
+    first = post_json(srv, "/api/clip", CLIP).json()["id"]
+    ids = [post_json(srv, "/api/clip", CLIP).json()["id"] for _ in range(clips.MAX_CLIPS)]
+    r = request(srv, "GET", f"/api/clip/{first}/frames?t=0", token=True)
+    assert r.status == 404 and "POST /api/clip it again" in r.json()["error"]
+    assert request(srv, "GET", f"/api/clip/{ids[0]}/frames?t=0", token=True).status == 200
+
+
+@pytest.mark.parametrize("query, match", [
+    ("", "expected t=T0,T1,... once"),
+    ("?t=", "expected t=T0,T1,... once"),
+    ("?t=0&t=1", "expected t=T0,T1,... once"),
+    ("?t=0,x", r"t\[1\]: expected a number of seconds"),
+    ("?t=0,nan", r"t\[1\]: expected a finite number"),
+    ("?t=0&fps=3", "unexpected parameter 'fps'"),
+    ("?t=" + ",".join(["0"] * 2001), "at most 2000 a request"),
+])
+def test_bad_frame_queries_get_one_clear_line(srv, query, match):
+    cid = post_json(srv, "/api/clip", CLIP).json()["id"]
+    r = request(srv, "GET", f"/api/clip/{cid}/frames{query}", token=True)
+    assert r.status == 400, r.body
+    assert re.search(match, r.json()["error"]), r.json()["error"]
 
 
 def test_save_clip_writes_a_clip_file(srv):
@@ -136,6 +206,12 @@ def test_save_clip_writes_a_clip_file(srv):
     ("/api/save-clip", {"clip": CLIP, "name": "x.json", "overwrite": 1}, 400,
      '"overwrite": expected true or false'),
     ("/api/save-clip", {"clip": CLIP, "as": "x"}, 400, "unexpected key 'as'"),
+    ("/api/save-clip", {"name": "x.json"}, 400, 'expected "clip" .* or "id"'),
+    ("/api/save-clip", {"id": "zz"}, 400, '"id": expected a clip id'),
+    ("/api/save-clip", {"id": "0123456789abcdef"}, 404, "no clip '0123456789abcdef'"),
+    ("/api/save-clip", {"clip": CLIP, "fps": 3}, 400, '"fps" goes with "id"'),
+    ("/api/clip", [1], 400, "clip: expected a JSON object"),
+    ("/api/clip/0123456789abcdef/pose", {"time": 0}, 404, "no clip"),
     ("/api/export", {"frames": ["AAAA"], "fps": 10}, 400,
      r'"frames"\[0\]: expected a PNG image, found 3 bytes'),
     ("/api/export", {"frames": [], "fps": 10}, 400, '"frames": expected a list of 1 to 600'),
@@ -218,3 +294,12 @@ def test_the_clip_routes_need_the_token_and_post(srv):
                        host="evil.example:80").status == 403
         r = request(srv, "GET", path, token=True)
         assert r.status == 405 and r.headers["allow"] == "POST"
+    cid = post_json(srv, "/api/clip", CLIP).json()["id"]
+    for path, allow in ((f"/api/clip/{cid}", "GET"), (f"/api/clip/{cid}/keys", "GET"),
+                        (f"/api/clip/{cid}/frames?t=0", "GET"), (f"/api/clip/{cid}/pose", "POST")):
+        for method in ("GET", "POST"):
+            assert request(srv, method, path, body=body).status == 403
+        other = "POST" if allow == "GET" else "GET"
+        r = request(srv, other, path, token=True, body=body if other == "POST" else None)
+        assert r.status == 405 and r.headers["allow"] == allow
+    assert request(srv, "GET", f"/api/clip/{cid}x", token=True).status == 404

@@ -23,7 +23,6 @@ export class PoseEditor {
     this.drag = null;
     this.mode = "stretch";
     this.bones = new Bones(viewer);
-    this.sliders = { twist: {}, stretch: {} };    // bone name -> end twist (deg), stretch
     this.names = [];
     const names = viewer.summary.names || [];
     for (let i = 0; i < viewer.b; i++) this.names.push(names[i] != null ? String(names[i]) : String(i));
@@ -232,34 +231,21 @@ export class PoseEditor {
     document.getElementById("stretch-value").textContent = `×${Number(s.value).toFixed(2)}`;
   }
 
-  sliderPose() {
-    const pose = { stretch: {} };
-    for (const [n, s] of Object.entries(this.sliders.stretch)) if (s !== 1) pose.stretch[n] = s;
-    if (this.v.dim === 3) {
-      pose.twist = {};
-      for (const [n, t] of Object.entries(this.sliders.twist)) if (t !== 0) pose.twist[n] = [0, t];
-    }
-    return pose;
-  }
-
   /**
    * A slider move: the current pose in the forward-kinematics form with the selected
-   * bone's stretch and end twist set (rotations from the gizmo or drags kept); for a
-   * pose that has no such form, the sliders' own pose.
+   * bone's stretch and end twist set (rotations, offsets and the other twists kept);
+   * the bones below follow by forward kinematics, offset children included.
    */
   onSlider() {
     const name = this.names[Number(document.getElementById("bone").value) || 0];
     const t = Number(document.getElementById("twist").value);
     const s = Number(document.getElementById("stretch").value);
-    this.sliders.twist[name] = t;
-    this.sliders.stretch[name] = s;
     this.showValues();
     if (!this.sliding) {
       this.remember();
       this.sliding = true;
       this.slideBase = this.bones.fkObject(this.bones.world());
     }
-    if (!this.slideBase) return this.v.send(this.sliderPose());
     const pose = JSON.parse(JSON.stringify(this.slideBase));
     pose.stretch = Object.assign({}, pose.stretch, { [name]: s });
     if (s === 1) delete pose.stretch[name];
@@ -271,9 +257,35 @@ export class PoseEditor {
     return this.v.send(pose);
   }
 
+  /**
+   * Turn a bone (index or name) and everything below it by `degrees` about the world
+   * `axis` ([x, y, z]; 2D: about z, the axis optional) through its posed start, as a
+   * gizmo ring does: one undo step. Resolves to the pose as the server keeps it.
+   */
+  async turnBone(bone, axis, degrees) {
+    const b = this.bones;
+    const i = typeof bone === "number" ? bone : b.names.indexOf(String(bone));
+    if (!Number.isInteger(i) || i < 0 || i >= b.b) {
+      throw new Error(`bone: expected a bone index 0..${b.b - 1} or name, got ${JSON.stringify(bone)}`);
+    }
+    if (this.v.dim === 2 && (axis === null || axis === undefined)) axis = [0, 0, 1];
+    if (!Array.isArray(axis) || axis.length !== 3 || !axis.every(Number.isFinite) ||
+        axis.every((x) => x === 0) || (this.v.dim === 2 && (axis[0] !== 0 || axis[1] !== 0))) {
+      throw new Error(`axis: expected a non-zero [x, y, z]${this.v.dim === 2 ? " along z (2D)" : ""}, got ${JSON.stringify(axis)}`);
+    }
+    if (typeof degrees !== "number" || !Number.isFinite(degrees)) {
+      throw new Error(`degrees: expected a finite number, got ${JSON.stringify(degrees)}`);
+    }
+    await this.v.idle();
+    const w = b.rotateBone(b.world(), i, axis, degrees / DEG);
+    this.remember();
+    await this.v.send(b.poseObject(w).pose);
+    this.showBone();
+    return this.v.getPose();
+  }
+
   reset() {
     this.remember();
-    this.sliders = { twist: {}, stretch: {} };
     const sent = this.v.send({});
     sent.then(() => this.showBone());
     return sent;

@@ -1,9 +1,10 @@
 // Skeleton edits in world space on the page: the current pose's per-bone arrays
 // (stbs.Pose: R_i, a'_i, sigma_i, theta_i) edited by a joint drag (stretching
 // the bones at the joint, or inverse kinematics keeping bone lengths) or a rotation
-// of a bone with everything below it, then written back as a pose object for
-// POST /api/pose: the forward-kinematics form where the pose has one (the roll
-// that twists give the bones below them is kept), else the joints form.
+// of a bone with everything below it (its children, connected or hanging off it),
+// then written back as a pose object for POST /api/pose: the forward-kinematics form
+// of DESIGN §2, which holds every pose exactly (each bone's rotation, start offset and
+// twist in the frame its parent carries it in: stbs.Pose.local).
 
 const DEG = 180 / Math.PI;
 
@@ -66,17 +67,23 @@ export function toAxisAngle(M) {
 }
 
 // ------------------------------------------------------------------ the skeleton
-/** Parents, children and joint incidences of the rig's bones (from BE and P). */
+/** Parents, children, hang points and joint incidences of the rig's bones (BE, P). */
 export class Bones {
   constructor(viewer) {
     const { BE } = viewer.arrays;
+    const s = viewer.summary;
     this.v = viewer;
     this.b = viewer.b;
     this.dim = viewer.dim;
-    this.parents = viewer.summary.parents.slice();
+    this.parents = s.parents.slice();
     this.start = [];
     this.end = [];
     for (let i = 0; i < this.b; i++) { this.start.push(BE[2 * i]); this.end.push(BE[2 * i + 1]); }
+    // connected: the child starts at its parent's end joint; else an offset child,
+    // hanging at t_c on its parent (the server's Skeleton.connected and .hang)
+    this.connected = this.parents.map((p, i) => (s.connected ? !!s.connected[i]
+      : p >= 0 && this.start[i] === this.end[p]));
+    this.hang = this.parents.map((p, i) => (s.hang ? s.hang[i] : this.connected[i] ? 1 : 0));
     this.children = Array.from({ length: this.b }, () => []);
     this.parents.forEach((p, i) => { if (p >= 0) this.children[p].push(i); });
     this.order = [];                                    // parents before children
@@ -104,8 +111,10 @@ export class Bones {
 
   /**
    * The inverse-kinematics chain of joint j: the bone ending at j and its parents up
-   * to the first joint that is a root (no bone ends there) or a branching joint (more
-   * than one bone starts there); that joint stays put. Bones top-down; [] at a root.
+   * to the first joint that is a root (no bone ends there), a branching joint (more
+   * than one bone starts there) or the start of an offset child (it hangs off its
+   * parent elsewhere than the parent's end); that joint stays put. Bones top-down;
+   * [] at a root.
    */
   chain(j) {
     const e = this.endingAt(j);
@@ -113,7 +122,7 @@ export class Bones {
     const out = [e[0]];
     for (;;) {
       const top = out[0], p = this.parents[top];
-      if (p < 0 || this.startingAt(this.start[top]).length > 1) break;
+      if (p < 0 || !this.connected[top] || this.startingAt(this.start[top]).length > 1) break;
       out.unshift(p);
     }
     return out;
@@ -217,62 +226,71 @@ export class Bones {
   }
 
   // ---------------------------------------------------------------- back to a pose object
-  /**
-   * The pose object (a pose file's JSON) of a world pose: the forward-kinematics form
-   * (bones by name, degrees) when the pose has one, else the joints form with the
-   * bones' absolute twists. Returns {pose, form}.
-   */
+  /** The pose object of a world pose: the forward-kinematics form. Returns {pose, form}. */
   poseObject(w) {
-    const fk = this.fkObject(w);
-    if (fk) return { pose: fk, form: "fk" };
-    const d = this.dim, pose = { joints: this.joints(w).map((q) => q.slice(0, d)) };
-    if (d === 3) {
-      const twist = {};
-      w.T.forEach(([a, b], i) => { if (a !== 0 || b !== 0) twist[this.names[i]] = [a * DEG, b * DEG]; });
-      if (Object.keys(twist).length) pose.twist = twist;
-    }
-    return { pose, form: "joints" };
+    return { pose: this.fkObject(w), form: "fk" };
   }
 
-  /** The forward-kinematics form of a world pose, or null where it has none. */
+  /** The frame bone i hangs in (DESIGN §2): F_p = R_p K_p(t_c), its parent's rotation
+   * and the parent's twist where it hangs (3x3 rows; 2D: R_p). */
+  hangFrame(w, i) {
+    const p = this.parents[i];
+    if (this.dim !== 3) return w.R[p];
+    const t = this.hang[i], angle = (1 - t) * w.T[p][0] + t * w.T[p][1];
+    return angle === 0 ? w.R[p] : matmul(w.R[p], axisAngle(this.restVec(p), angle));
+  }
+
+  /**
+   * The forward-kinematics form of a world pose (bones by name, degrees), exactly as
+   * stbs.Pose.local gives it: each bone's rotation L_i = F_p^T R_i, its own stretch
+   * and twist [theta_a, theta_b], and where its start is away from where its parent
+   * carries it the offset D_i = F_p^T (a'_i - a'_p) - t_c (sigma_p - 1)(b_p - a_p) -
+   * (a_i - a_p) (a root: a'_i - a_i) under "translate": [x, y, z] when only roots
+   * moved, all alike, else {bone: offset}.
+   */
   fkObject(w) {
-    // the page's rest joints are float32: joints agree to 1e-6 of the rig's size
-    const d = this.dim, tol = 1e-6 * Math.max(this.v.diag, 1e-12);
-    const rotate = {}, stretch = {}, twist = {};
-    let translate = null;
-    const G = [];
+    const d = this.dim;
+    let big = 1;
+    for (let k = 0; k < this.v.restC.length; k++) big = Math.max(big, Math.abs(this.v.restC[k]));
+    for (const a of w.A) big = Math.max(big, Math.abs(a[0]), Math.abs(a[1]), Math.abs(a[2]));
+    const tol = 1e-9 * big;       // as stbs.io.pose_to_dict: an offset below it is none
+    const rotate = {}, stretch = {}, twist = {}, moved = [];
     for (const i of this.order) {
       const p = this.parents[i], name = this.names[i];
-      let L;
+      let L, D;
       if (p < 0) {
-        const t = sub(w.A[i], this.restStart(i));
-        if (translate === null) translate = t;
-        else if (norm(sub(t, translate)) > tol) return null;     // roots move apart
-        const others = this.startingAt(this.start[i]).filter((k) => this.parents[k] < 0);
-        if (others.some((k) => Math.abs(w.T[k][0] - w.T[i][0]) > 1e-12)) return null;
         L = w.R[i];
+        D = sub(w.A[i], this.restStart(i));
       } else {
-        if (norm(sub(w.A[i], this.endOf(w, p))) > tol) return null;   // not at its parent's end
-        if (Math.abs(w.T[i][0]) > 1e-12) return null;                 // its own start twist
-        L = matmul(transpose(G[p]), w.R[i]);
+        const Ft = transpose(this.hangFrame(w, i));
+        L = matmul(Ft, w.R[i]);
+        D = sub(sub(apply(Ft, sub(w.A[i], w.A[p])), scale(this.restVec(p), this.hang[i] * (w.S[p] - 1))),
+                sub(this.restStart(i), this.restStart(p)));
       }
-      G[i] = d === 3 ? matmul(w.R[i], axisAngle(this.restVec(i), w.T[i][1])) : w.R[i];
       if (d === 3) {
         const [axis, angle] = toAxisAngle(L);
-        if (angle > 1e-14) rotate[name] = { axis, angle: angle * DEG };
+        if (angle > 1e-15) rotate[name] = { axis, angle: angle * DEG };
         const [a, b] = w.T[i];
-        if (a !== 0 || b !== 0) twist[name] = [p < 0 ? a * DEG : 0, b * DEG];
+        if (a !== 0 || b !== 0) twist[name] = [a * DEG, b * DEG];
       } else {
         const angle = Math.atan2(L[1][0], L[0][0]);
-        if (Math.abs(angle) > 1e-14) rotate[name] = { angle: angle * DEG };
+        if (angle !== 0) rotate[name] = { angle: angle * DEG };
       }
       if (w.S[i] !== 1) stretch[name] = w.S[i];
+      if (Math.max(Math.abs(D[0]), Math.abs(D[1]), Math.abs(D[2])) > tol) moved.push([i, D.slice(0, d)]);
     }
     const pose = {};
     if (Object.keys(rotate).length) pose.rotate = rotate;
     if (Object.keys(stretch).length) pose.stretch = stretch;
     if (Object.keys(twist).length) pose.twist = twist;
-    if (translate && norm(translate) > tol) pose.translate = translate.slice(0, d);
+    if (moved.length) {
+      const roots = this.parents.flatMap((p, i) => (p < 0 ? [i] : []));
+      const D0 = moved[0][1];
+      const alike = moved.length === roots.length && moved.every(([i, D]) => this.parents[i] < 0 &&
+        D.every((x, c) => Math.abs(x - D0[c]) <= tol));
+      if (alike) pose.translate = D0;
+      else pose.translate = Object.fromEntries(moved.map(([i, D]) => [this.names[i], D]));
+    }
     pose.degrees = true;
     return pose;
   }

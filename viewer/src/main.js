@@ -6,7 +6,7 @@ import * as THREE from "three";
 import { OrbitControls } from "three/examples/jsm/controls/OrbitControls.js";
 import { SkinFeedback } from "./feedback.js";
 import { timeFrames } from "./timing.js";
-import { packBones, posedSegments, restFrames } from "./pose.js";
+import { hangSegments, packBones, posedSegments, restFrames } from "./pose.js";
 import { PoseEditor } from "./edit.js";
 import { WeightEditor } from "./paint.js";
 import { Compare } from "./compare.js";
@@ -98,7 +98,14 @@ class Viewer {
     this.arrays = arrays;
     this.n = info.vertices;
     this.b = info.bones;
-    this.rest = restFrames(arrays.C, arrays.BE, this.dim);
+    // the rest joints in float64 (the summary's) for the pose arithmetic; C.bin is float32
+    const C64 = info.rest_joints ? Float64Array.from(info.rest_joints.flat()) : arrays.C;
+    this.rest = restFrames(C64, arrays.BE, this.dim);
+    this.restC = C64;
+    // offset children (DESIGN §2): [child, parent, t_c], drawn as links to where they hang
+    const parents = info.parents || [], hang = info.hang || [], connected = info.connected || [];
+    this.links = [];
+    parents.forEach((p, i) => { if (p >= 0 && connected[i] === false) this.links.push([i, p, hang[i] ?? 0]); });
     this.boneData = new Float32Array(4 * TEXELS_PER_BONE * this.b);
     this.methodIndex = Math.max(0, METHODS.indexOf(info.method));
     this.buildScene();
@@ -111,10 +118,9 @@ class Viewer {
     this.compare = new Compare(this);
     this.gizmo = new Gizmo(this, this.editor.bones);
     this.poseFiles = new PoseFiles(this, apiJSON, status);
-    this.timeline = new Timeline(this, apiJSON, status);
+    this.timeline = new Timeline(this, api, status);
     if (info.clip) {        // started with a clip (stbs view RIG --motion FILE): on the timeline
-      const { clip } = await apiJSON("/api/clip");
-      await this.timeline.setClip(clip);
+      await this.timeline.open(await apiJSON("/api/clip"));
     }
     this.frame();
   }
@@ -197,6 +203,14 @@ class Viewer {
     this.joints.renderOrder = 2;
     this.joints.frustumCulled = false;
     scene.add(this.skeletonLines, this.joints);
+    const linkGeom = new THREE.BufferGeometry();
+    linkGeom.setAttribute("position", new THREE.BufferAttribute(new Float32Array(6 * Math.max(this.links.length, 1)), 3));
+    linkGeom.setDrawRange(0, 2 * this.links.length);
+    this.linkLines = new THREE.LineSegments(linkGeom, new THREE.LineBasicMaterial(
+      { color: 0x7fd4ff, depthTest: false, transparent: true, opacity: 0.35 }));
+    this.linkLines.renderOrder = 1;
+    this.linkLines.frustumCulled = false;
+    scene.add(this.linkLines);
     this.scene = scene;
 
     const center = this.bbox.getCenter(new THREE.Vector3());
@@ -273,12 +287,22 @@ class Viewer {
   }
 
   async fetchPose() {
-    this.poseArrays = await apiJSON("/api/pose/bones");
-    packBones(this.rest, this.poseArrays, this.dim, this.boneData);
+    this.showArrays(await apiJSON("/api/pose/bones"));
+  }
+
+  /** Upload a pose's per-bone arrays {rotations, origins, stretch, twist} (not drawn yet). */
+  showArrays(arrays) {
+    this.poseArrays = arrays;
+    packBones(this.rest, arrays, this.dim, this.boneData);
     this.boneTexture.needsUpdate = true;
     const segs = this.skeletonLines.geometry.attributes.position;
-    posedSegments(this.rest, this.poseArrays, this.dim, segs.array);
+    posedSegments(this.rest, arrays, this.dim, segs.array);
     segs.needsUpdate = true;
+    if (this.links.length) {
+      const links = this.linkLines.geometry.attributes.position;
+      hangSegments(this.links, segs.array, links.array);
+      links.needsUpdate = true;
+    }
   }
 
   render() {
@@ -506,6 +530,7 @@ window.stbsViewer = Object.freeze({
   setDragMode: whenReady((mode) => viewer.editor.setDragMode(mode)),
   dragMode: () => (viewer.editor ? viewer.editor.mode : "stretch"),
   setGizmo: whenReady((bone) => viewer.gizmo.set(bone)),
+  turnBone: whenReady((bone, axis, degrees) => viewer.editor.turnBone(bone, axis, degrees)),
   gizmo: whenReady(() => viewer.gizmo.info()),
   setCompare: whenReady((name) => viewer.compare.set(name)),
   compare: () => (viewer.compare ? viewer.compare.method() : null),
@@ -535,7 +560,7 @@ window.stbsViewer = Object.freeze({
   keys: () => (viewer.timeline ? viewer.timeline.keys() : []),
   clearKeys: whenReady(() => viewer.timeline.clearKeys()),
   setClip: whenReady((clip) => viewer.timeline.setClip(clip)),
-  getClip: () => (viewer.timeline ? viewer.timeline.clip() : null),
+  getClip: whenReady(() => viewer.timeline.fullClip()),
   setFps: whenReady((fps) => viewer.timeline.setFps(fps)),
   setInterpolation: whenReady((name) => viewer.timeline.setInterpolation(name)),
   seek: whenReady((t) => viewer.timeline.seek(t)),

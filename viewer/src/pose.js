@@ -3,7 +3,8 @@
 
 import { TEXELS_PER_BONE } from "./skin.js";
 
-/** Rest frames of the bones, in 3D (2D rigs get z = 0), float64. */
+/** Rest frames of the bones, in 3D (2D rigs get z = 0), float64 (C: the rest joints,
+ * flat, j x dim; the server's float64 values where it sends them). */
 export function restFrames(C, BE, dim) {
   const b = BE.length / 2;
   const a = new Float64Array(3 * b), bb = new Float64Array(3 * b);
@@ -117,5 +118,22 @@ export function posedSegments(rest, pose, dim, out) {
       out[6 * i + 3 + c] = ap[c] + s * (R[c][0] * u[0] + R[c][1] * u[1] + R[c][2] * u[2]);
     }
   }
+  return out;
+}
+
+/**
+ * The offset children's links: for each bone hanging off its parent away from the
+ * parent's end (DESIGN §2, `hang` t_c), a segment from where it hangs on the posed
+ * parent, a'_p + t_c (b'_p - a'_p) (the twist turns about the bone, so the point
+ * stays on it), to its posed start a'_c. `links` lists [child, parent, t_c].
+ */
+export function hangSegments(links, segs, out) {
+  links.forEach(([c, p, t], k) => {
+    for (let x = 0; x < 3; x++) {
+      const a = segs[6 * p + x], b = segs[6 * p + 3 + x];
+      out[6 * k + x] = a + t * (b - a);
+      out[6 * k + 3 + x] = segs[6 * c + x];
+    }
+  });
   return out;
 }

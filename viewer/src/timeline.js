@@ -1,17 +1,21 @@
 // The timeline: keyed poses (a clip, docs/clips.md), a scrubber, playback at the
 // clip's fps, saving and loading clip files, and export to an animated GIF.
 //
-// The page never interpolates poses itself: the server reads the clip with
-// stbs.io.read_clip and answers Clip.pose as per-bone arrays (POST /api/clip/sample
-// for playback, one request per clip change; POST /api/clip/pose for a seek, which
-// also makes that pose the server's current pose, so edits start from it).
-
-import { packBones, posedSegments } from "./pose.js";
+// The page never interpolates poses itself: the server holds the clip (POST /api/clip
+// registers the page's keys once per edit; a character's own animation or a retargeted
+// capture is held from the start) and evaluates it with stbs.Clip.arrays, so what is
+// shown is Clip.pose exactly, step and cubic channels included. Playback asks for the
+// frames ahead in batches (GET /api/clip/ID/frames?t=...); a seek makes the clip's
+// pose at t the server's current pose (POST /api/clip/ID/pose {time}), so edits start
+// from it. Neither sends the clip again. One implementation of clips (the library's)
+// is why: the page's own would have to follow every kind of channel the readers make.
 
 const DEFAULT_FPS = 30;
 const INTERPOLATIONS = ["linear", "step"];
 const MAX_EXPORT_WIDTH = 480;    // px: GIF frames are scaled down to at most this width
 const MAX_EXPORT_FRAMES = 600;   // what POST /api/export takes
+const MAX_BATCH = 240;           // frames a frames request asks for (the server takes 2000)
+const GRID_TOL = 1e-9;           // as stbs.Clip.sample_times
 
 function copy(x) { return JSON.parse(JSON.stringify(x)); }
 
@@ -23,36 +27,75 @@ function finite(name, x) {
 }
 
 export class Timeline {
-  /** apiJSON(path, options) and status(text, isError) are the page's own. */
-  constructor(viewer, apiJSON, status) {
+  /** api(path, options) (a fetch that throws with the server's message) and
+   * status(text, isError) are the page's own. */
+  constructor(viewer, api, status) {
     this.v = viewer;
-    this.apiJSON = apiJSON;
+    this.api = api;
     this.status = status;
     this.fps = DEFAULT_FPS;
     this.interpolation = "linear";
-    this.list = [];              // [{time, pose}] sorted by time; pose: a pose-file object
+    // [{time, pose}] sorted by time; pose: a pose-file object, or null for a key of a
+    // clip the server holds whose pose the page has not needed yet (source)
+    this.list = [];
+    this.source = null;          // id of the server's clip the null poses are keys of
+    this.held = null;            // id of the server's clip that is these keys now, or null
     this.time = 0;
     this.loop = true;
-    this.version = 0;            // bumped on every clip change
-    this.cache = null;           // {version, reply} of POST /api/clip/sample
+    this.version = 0;            // bumped on every change of the clip
     this.playing = false;
     this.raf = 0;
     this.buildBar();
   }
 
+  async apiJSON(path, options) { return (await this.api(path, options)).json(); }
+
   // ------------------------------------------------------------------ the clip
-  /** The clip file object of the keys, or null when there are none. */
+  /** The clip object of the keys (null poses where not fetched), or null without keys. */
   clip() {
     if (!this.list.length) return null;
     return { fps: this.fps, interpolation: this.interpolation, keys: copy(this.list) };
   }
 
+  /** The clip object with every key's pose (fetched once from the server where needed). */
+  async fullClip() {
+    if (this.list.some((k) => k.pose === null)) {
+      const { clip } = await this.apiJSON(`/api/clip/${this.source}/keys`);
+      const byTime = new Map(clip.keys.map((k) => [k.time, k.pose]));
+      for (const k of this.list) if (k.pose === null) k.pose = byTime.get(k.time);
+    }
+    return this.clip();
+  }
+
   keys() { return copy(this.list); }
 
-  changed() {
+  /** After a change of the keys: bump the version; `evaluated`: the poses change, so the
+   * clip is registered again before it is next shown. */
+  changed(evaluated = true) {
     this.version += 1;
-    this.cache = null;
+    if (evaluated) this.held = null;
     this.updateBar();
+  }
+
+  /** The id of the server's clip for the keys as they are: registered (one POST of the
+   * keys) after an edit, else the one held. */
+  async clipId() {
+    if (this.held) return this.held;
+    const version = this.version;
+    const clip = await this.fullClip();
+    const reply = await this.apiJSON("/api/clip", this.post(clip));
+    if (version === this.version) this.held = reply.id;
+    return reply.id;
+  }
+
+  /** Run f(id) on the clip's id; a clip the server dropped (404) is registered again. */
+  async withClip(f) {
+    const id = await this.clipId();
+    try { return await f(id); } catch (err) {
+      if (err.status !== 404 || id === this.source) throw err;
+      if (this.held === id) this.held = null;
+      return f(await this.clipId());
+    }
   }
 
   /** Add (or replace) the key at `time` with `pose` (default: the current pose, GET /api/pose). */
@@ -101,31 +144,47 @@ export class Timeline {
     return [];
   }
 
-  /** Replace the clip by a clip file object (checked by the server); resolves to getClip(). */
+  /** Replace the clip by a clip file object (checked by the server, which then holds it);
+   * shows its first key; resolves to getClip(). */
   async setClip(obj) {
     if (!obj || typeof obj !== "object" || Array.isArray(obj)) {
       throw new Error(`clip must be a clip object {fps, interpolation, keys}, got ${JSON.stringify(obj)}`);
     }
-    if ("times" in obj) throw new Error('clip: unexpected key "times"; a clip has fps, interpolation, keys');
-    const reply = await this.apiJSON("/api/clip/sample", this.post(obj));   // the server's read_clip
+    const reply = await this.apiJSON("/api/clip", this.post(obj));    // the server's read_clip
     this.stop();
     this.fps = reply.fps;
     this.interpolation = reply.interpolation;
     this.list = obj.keys.map((k) => ({ time: Number(k.time), pose: copy(k.pose) }))
       .sort((a, b) => a.time - b.time);
+    this.source = null;
     this.changed();
-    this.cache = { version: this.version, reply };
+    this.held = reply.id;
     this.time = reply.start;
     await this.show(this.time);
     return this.clip();
   }
 
+  /** Open a clip the server holds (GET /api/clip's summary): its keys' times now, their
+   * poses when an edit needs them; shows its first key. */
+  async open(summary) {
+    this.stop();
+    this.fps = summary.fps;
+    this.interpolation = summary.interpolation;
+    this.list = summary.keys.map((t) => ({ time: t, pose: null }));
+    this.source = summary.id;
+    this.changed();
+    this.held = summary.id;
+    this.time = summary.start;
+    await this.show(this.time);
+  }
+
+  /** The fps playback, export and saving use (the clip's poses do not depend on it). */
   setFps(fps) {
     if (typeof fps !== "number" || !Number.isFinite(fps) || fps <= 0) {
       throw new Error(`fps must be a number > 0, got ${JSON.stringify(fps)}`);
     }
     this.fps = fps;
-    this.changed();
+    this.changed(false);
     return fps;
   }
 
@@ -133,8 +192,10 @@ export class Timeline {
     if (!INTERPOLATIONS.includes(name)) {
       throw new Error(`interpolation must be one of ${INTERPOLATIONS.join(", ")}, got ${JSON.stringify(name)}`);
     }
-    this.interpolation = name;
-    this.changed();
+    if (name !== this.interpolation) {
+      this.interpolation = name;
+      this.changed();
+    }
     return name;
   }
 
@@ -146,29 +207,50 @@ export class Timeline {
     if (!this.list.length) throw new Error(`${what}: the clip has no keys (add a key first)`);
   }
 
-  /** The clip sampled at its fps (cached until the clip changes). */
-  async sample() {
-    this.needKeys("sample");
-    if (!this.cache || this.cache.version !== this.version) {
-      const version = this.version;
-      const reply = await this.apiJSON("/api/clip/sample", this.post(this.clip()));
-      if (version === this.version) this.cache = { version, reply };
-      return reply;
+  /** The clip's fps grid from its first key to its last (stbs.Clip.sample_times). */
+  grid() {
+    const start = this.list[0].time, end = this.list[this.list.length - 1].time;
+    const m = Math.floor((end - start) * this.fps + GRID_TOL) + 1;
+    return { start, count: m, at: (k) => start + k / this.fps };
+  }
+
+  /**
+   * The clip's poses at `times` (GET /api/clip/ID/frames, batches of MAX_BATCH), each
+   * {rotations, origins, stretch, twist} as GET /api/pose/bones gives a pose.
+   */
+  async frames(times) {
+    const out = [];
+    for (let k = 0; k < times.length; k += MAX_BATCH) {
+      const part = times.slice(k, k + MAX_BATCH);
+      const r = await this.withClip((id) => this.api(`/api/clip/${id}/frames?t=${part.map(String).join(",")}`));
+      const [n, b, m] = r.headers.get("X-Stbs-Shape").split(",").map(Number);
+      const rows = new Float64Array(await r.arrayBuffer());
+      const d = this.v.dim;
+      if (n !== part.length || b !== this.v.b || m !== d * d + d + 3) {
+        throw new Error(`frames: expected ${part.length} x ${this.v.b} x ${d * d + d + 3} values, got ${n} x ${b} x ${m}`);
+      }
+      for (let f = 0; f < n; f++) {
+        const rotations = [], origins = [], stretch = [], twist = [];
+        for (let i = 0; i < b; i++) {
+          const o = (f * b + i) * m;
+          const R = [];
+          for (let r0 = 0; r0 < d; r0++) R.push(Array.from(rows.subarray(o + d * r0, o + d * r0 + d)));
+          rotations.push(R);
+          origins.push(Array.from(rows.subarray(o + d * d, o + d * d + d)));
+          stretch.push(rows[o + d * d + d]);
+          twist.push([rows[o + d * d + d + 1], rows[o + d * d + d + 2]]);
+        }
+        out.push({ rotations, origins, stretch, twist });
+      }
     }
-    return this.cache.reply;
+    return out;
   }
 
   // ------------------------------------------------------------------ showing a time
   /** Upload one frame's bone arrays (as fetchPose does) and draw. */
   draw(frame) {
-    const v = this.v;
-    v.poseArrays = frame;
-    packBones(v.rest, frame, v.dim, v.boneData);
-    v.boneTexture.needsUpdate = true;
-    const segs = v.skeletonLines.geometry.attributes.position;
-    posedSegments(v.rest, frame, v.dim, segs.array);
-    segs.needsUpdate = true;
-    v.render();
+    this.v.showArrays(frame);
+    this.v.render();
   }
 
   /**
@@ -176,9 +258,8 @@ export class Timeline {
    * one after another in the order asked for, so the last one asked for is what stays.
    */
   show(t) {
-    const clip = this.clip();
     const run = async () => {
-      const reply = await this.apiJSON("/api/clip/pose", this.post({ clip, time: t }));
+      const reply = await this.withClip((id) => this.apiJSON(`/api/clip/${id}/pose`, this.post({ time: t })));
       this.v.lastSent = copy(reply.pose);
       await this.v.fetchPose();
       this.v.render();
@@ -192,40 +273,74 @@ export class Timeline {
     return mine;
   }
 
-  /** Stop playing and show the clip at t (seconds); resolves to {time, exact} once drawn. */
+  /** Stop playing and show the clip at t (seconds); resolves to {time} once drawn. */
   async seek(t) {
     finite("t", t);
     this.needKeys("seek");
     this.stop();
     await this.v.idle();
-    const reply = await this.show(t);
-    return { time: t, exact: reply.exact };
+    await this.show(t);
+    return { time: t };
   }
 
-  /** Play from the current time (from the start when at or past the end); resolves once playing. */
+  /**
+   * Play from the current time (from the start when at or past the end) on the fps
+   * grid, by the wall clock; the frames come in batches, each asked for while the one
+   * before plays. Resolves once the first frame is drawn.
+   */
   async play() {
     this.needKeys("play");
     if (this.playing) return this.state();
     await this.v.idle();
-    const reply = await this.sample();
-    const n = reply.times.length;
-    let k0 = Math.round((this.time - reply.start) * reply.fps);
+    const grid = this.grid(), n = grid.count, fps = this.fps;
+    const batch = Math.min(MAX_BATCH, Math.max(16, Math.ceil(fps)));
+    let k0 = Math.round((this.time - grid.start) * fps);
     if (!(k0 >= 0 && k0 < n - 1)) k0 = 0;
+    const cache = new Map();                  // frame index -> frame
+    let asked = null;                         // the batch in flight
+    const fetchFrom = (k) => {                // the batch of frames from k (wrapping)
+      const ks = [];
+      for (let j = 0; j < Math.min(batch, n); j++) {
+        const kk = (k + j) % n;
+        if (kk < k && !this.loop) break;
+        if (!cache.has(kk)) ks.push(kk);
+      }
+      if (!ks.length) return Promise.resolve();
+      asked = this.frames(ks.map(grid.at)).then((fs) => {
+        fs.forEach((f, j) => cache.set(ks[j], f));
+      }).finally(() => { asked = null; });
+      return asked;
+    };
+    await fetchFrom(k0);
+    const version = this.version;
     const wall0 = performance.now();
     this.playing = true;
     this.updateBar();
-    const version = this.version;
+    let shown = -1;
     const tick = () => {
       if (!this.playing) return;
       if (this.version !== version || this.v.sending) { this.stop(); return; }   // edited: stop
-      let k = k0 + Math.floor((performance.now() - wall0) * reply.fps / 1000);
+      let k = k0 + Math.floor((performance.now() - wall0) * fps / 1000);
       if (k >= n) {
         if (this.loop && n > 1) k %= n;
         else { k = n - 1; this.playing = false; }
       }
-      this.time = reply.times[k];
-      this.draw(reply.frames[k]);
-      this.updateBar();
+      if (cache.has(k) && k !== shown) {
+        this.time = grid.at(k);
+        this.draw(cache.get(k));
+        shown = k;
+        this.updateBar();
+        if (cache.size > 4 * batch) {       // keep what is ahead, drop what was shown
+          for (const kk of cache.keys()) if ((kk - k + n) % n >= 2 * batch) cache.delete(kk);
+        }
+      }
+      if (!asked && this.playing) {
+        let ahead = 0;
+        while (ahead < batch / 2 && cache.has((k + ahead) % n)) ahead++;
+        if (ahead < batch / 2 && (this.loop || k + ahead < n)) {
+          fetchFrom((k + ahead) % n).catch((err) => { this.stop(); this.status(`timeline: ${err.message}`, true); });
+        }
+      }
       if (this.playing) this.raf = requestAnimationFrame(tick);
       else this.show(this.time).catch((err) => this.status(`timeline: ${err.message}`, true));
     };
@@ -256,13 +371,16 @@ export class Timeline {
   }
 
   // ------------------------------------------------------------------ files
-  /** Save the clip into the rig's folder (POST /api/save-clip); resolves to {path, name, keys}. */
+  /** Save the clip into the rig's folder (POST /api/save-clip of the clip the server
+   * holds, at the page's fps); resolves to {path, name, keys}. */
   async saveClip(name = null, overwrite = false) {
     this.needKeys("save clip");
-    const body = { clip: this.clip() };
-    if (name !== null && name !== undefined) body.name = name;
-    if (overwrite) body.overwrite = true;
-    const out = await this.apiJSON("/api/save-clip", this.post(body));
+    const out = await this.withClip((id) => {
+      const body = { id, fps: this.fps };
+      if (name !== null && name !== undefined) body.name = name;
+      if (overwrite) body.overwrite = true;
+      return this.apiJSON("/api/save-clip", this.post(body));
+    });
     this.status(`saved ${out.name} (${out.keys} keys)`);
     return out;
   }
@@ -278,9 +396,9 @@ export class Timeline {
   }
 
   /**
-   * Draw every sampled frame, scaled to at most `width` px wide, and send them to
-   * POST /api/export, which writes an animated GIF into the rig's folder. With `frame`
-   * (default) the camera frames the whole clip while drawing, then goes back.
+   * Draw every frame of the fps grid, scaled to at most `width` px wide, and send them
+   * to POST /api/export, which writes an animated GIF into the rig's folder. With
+   * `frame` (default) the camera frames the whole clip while drawing, then goes back.
    * Resolves to {path, name, frames, width, height, fps}.
    */
   async exportClip({ name = null, format = "gif", width = MAX_EXPORT_WIDTH, loop = this.loop,
@@ -289,10 +407,11 @@ export class Timeline {
     this.needKeys("export");
     this.stop();
     await this.v.idle();
-    const reply = await this.sample();
-    if (reply.frames.length > MAX_EXPORT_FRAMES) {
-      throw new Error(`export: ${reply.frames.length} frames; at most ${MAX_EXPORT_FRAMES} (lower the fps)`);
+    const grid = this.grid();
+    if (grid.count > MAX_EXPORT_FRAMES) {
+      throw new Error(`export: ${grid.count} frames; at most ${MAX_EXPORT_FRAMES} (lower the fps)`);
     }
+    const poses = await this.frames(Array.from({ length: grid.count }, (_, k) => grid.at(k)));
     const src = this.v.renderer.domElement;
     const w = Math.max(1, Math.min(Math.round(width), src.width));
     const h = Math.max(1, Math.round(src.height * w / src.width));
@@ -304,13 +423,13 @@ export class Timeline {
     try {
       if (frame) {                  // frame the whole clip: every frame's mesh and joints
         const points = [];
-        for (const f of reply.frames) {
+        for (const f of poses) {
           this.draw(f);
           points.push(v.skinned()[0].slice(), v.skeletonLines.geometry.attributes.position.array.slice());
         }
         v.frame(points);
       }
-      for (const f of reply.frames) {
+      for (const f of poses) {
         this.draw(f);
         ctx.drawImage(src, 0, 0, w, h);
         frames.push(out.toDataURL("image/png"));
@@ -325,7 +444,7 @@ export class Timeline {
       await v.fetchPose();          // back to the server's current pose
       v.render();
     }
-    const body = { frames, fps: reply.fps, format, loop };
+    const body = { frames, fps: this.fps, format, loop };
     if (name !== null && name !== undefined) body.name = name;
     if (overwrite) body.overwrite = true;
     const done = await this.apiJSON("/api/export", this.post(body));

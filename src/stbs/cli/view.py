@@ -15,7 +15,9 @@ Serve a rig to the browser viewer: start a server on 127.0.0.1 (only), print one
 the page's URL http://127.0.0.1:PORT/?token=TOKEN (a new token each run), open it in
 the browser (unless --no-browser), and serve until Ctrl-C.
 
-The rig is a .npz rig file, a MESH and SKELETON rigged first as 'stbs rig' does
+The rig is a .npz rig file, a character (glTF .gltf .glb, and the other character
+files stbs.io.read_rig reads; --skin and --mesh pick its skinned mesh where the reader
+takes them), a MESH and SKELETON rigged first as 'stbs rig' does
 (--bone, --endpoint, --tets, --clip-skeleton, --tol; an outline MESH, .poly or an
 image, is traced and meshed with the defaults of 'stbs rig'), or a built-in example:
   arm      an arm with a mitten hand, three bones, bone heat + heat endpoint weights
@@ -26,9 +28,11 @@ Every request other than the page and its assets needs the token; a request for
 another host name than 127.0.0.1:PORT or localhost:PORT is refused. The page saves
 poses and clips (keyed poses, played on its timeline) as JSON files and clips as
 animated GIFs into the rig's folder (the folder of --save-as when given) and the
-rig to --save-as, or beside the input: RIG.npz is saved as RIG-edited.npz (never over
-the input unless --save-as names it), MESH as MESH.npz; for an --example only with
---save-as. Files are written to a temporary file and renamed.
+rig to --save-as (.npz, or .glb/.gltf: a glTF character's own file with the page's
+endpoint weights added), or beside the input: RIG.npz is saved as RIG-edited.npz
+(never over the input unless --save-as names it), CHAR.glb as CHAR-edited.glb, MESH
+as MESH.npz; for an --example only with --save-as. Files are written to a temporary
+file and renamed.
 
 The page draws the rig lit and shaded with its skeleton, skins it in a vertex shader
 with any of the four methods (lbs, dqs, stbs-lbs, stbs-dqs), two of them side by side
@@ -40,22 +44,25 @@ shapes them with a curve (paper Fig. 10), saves the painted rig, and can be scri
 through window.stbsViewer (docs/viewer.md).
 
 --motion FILE opens the timeline with an animation of the rig: a BVH capture
-(retargeted onto the rig by joint names, each joint's twist spread along its bone), a
-clip .json, or a glTF animation of the rig's skeleton (a glTF rig opens with its own
-first animation when it has one)."""
+(retargeted onto the rig by joint names, or by --mapping MAP.json, each joint's twist
+spread along its bone), a clip .json, or a glTF animation of the rig's skeleton (a
+character opens with its own first animation when it has one). The page plays the
+animation exactly as stbs.Clip.pose gives it."""
 EPILOG = f"""examples:
   {EXAMPLE}
   stbs view                                     # the arm example
   stbs view --example picture --no-browser --port 8765
   stbs view arm.obj arm.tgf --bone heat --endpoint heat --save-as arm-rig.npz
-  stbs view character.glb --motion 131_01.bvh"""
+  stbs view character.glb --motion 131_01.bvh --mapping map.json
+  stbs view character.glb --save-as painted.glb"""
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     from .rig import BONE, ENDPOINT, add_clip_argument, add_tol_argument
 
     p.add_argument("input", nargs="?", metavar="RIG|MESH",
-                   help="a rig (.npz, .gltf, .glb), or a mesh (then give its SKELETON too)")
+                   help="a rig (.npz), a character (.gltf, .glb, ...), or a mesh (then give "
+                        "its SKELETON too)")
     p.add_argument("skeleton", nargs="?", metavar="SKELETON",
                    help="the skeleton (.tgf .bf) of MESH, rigged before serving")
     p.add_argument("--example", choices=EXAMPLES, default=None,
@@ -64,11 +71,20 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="port on 127.0.0.1 (default: a free one)")
     p.add_argument("--no-browser", action="store_true",
                    help="only print the URL; do not open a browser")
-    p.add_argument("--save-as", default=None, metavar="PATH.npz",
-                   help="where the page saves the rig (its folder also takes the poses)")
+    p.add_argument("--save-as", default=None, metavar="PATH",
+                   help="where the page saves the rig: .npz, or .glb/.gltf (its folder also "
+                        "takes the poses)")
     p.add_argument("--motion", default=None, metavar="FILE",
                    help="open the timeline with this animation: .bvh (retargeted), clip "
                         ".json, or a glTF animation of the rig's skeleton")
+    p.add_argument("--mapping", default=None, metavar="MAP.json",
+                   help="with --motion CAPTURE.bvh: which capture joint drives which rig "
+                        "bone ({rig bone: joint name}, as stbs.retarget takes it)")
+    c = p.add_argument_group("a character file with several skinned meshes")
+    c.add_argument("--skin", default=None, metavar="SKIN",
+                   help="the skin to read (index or name), where the reader takes it")
+    c.add_argument("--mesh", default=None, metavar="MESH",
+                   help="the mesh node to read (index or name), where the reader takes it")
     g = p.add_argument_group("rigging MESH SKELETON (as stbs rig)")
     g.add_argument("--bone", choices=BONE, default=None, help="bone weights (default: bbw)")
     g.add_argument("--endpoint", choices=ENDPOINT, default=None,
@@ -102,15 +118,22 @@ def _check(args: argparse.Namespace):
     if args.example is not None and args.input is not None:
         raise CommandError(f"give a rig (RIG.npz or MESH SKELETON) or --example "
                            f"{args.example}, not both")
+    rig_ext = _rig_extensions()
     if args.input is None:
         kind = "example"
     elif args.skeleton is None:
-        if not args.input.lower().endswith((".npz", ".gltf", ".glb")):
-            raise CommandError(f"{args.input!r}: expected a rig (.npz, or a glTF character "
-                               f".gltf .glb), or a MESH followed by its SKELETON")
+        if not args.input.lower().endswith(rig_ext):
+            raise CommandError(f"{args.input!r}: expected a rig (.npz, or a character "
+                               f"{' '.join(e for e in rig_ext if e != '.npz')}), or a MESH "
+                               f"followed by its SKELETON")
         kind = "rig"
     else:
         kind = "mesh"
+    character = {"--skin": args.skin, "--mesh": args.mesh}
+    given = [k for k, v in character.items() if v is not None]
+    if given and (kind != "rig" or args.input.lower().endswith(".npz")):
+        raise CommandError(f"{given[0]} applies to a character file (a .npz rig or a mesh "
+                           "has one skinned mesh)")
     rigging = {"--bone": args.bone, "--endpoint": args.endpoint, "--tets": args.tets,
                "--tol": args.tol, "--clip-skeleton": args.clip_skeleton or None}
     given = [k for k, v in rigging.items() if v is not None]
@@ -124,14 +147,23 @@ def _check(args: argparse.Namespace):
                                f"{', '.join(MOTION_EXTENSIONS)}")
         if not Path(args.motion).is_file():
             raise CommandError(f"--motion {args.motion!r}: file not found")
+    if args.mapping is not None:
+        if args.motion is None or not args.motion.lower().endswith(".bvh"):
+            raise CommandError("--mapping applies to --motion CAPTURE.bvh (the joints it maps "
+                               "are a capture's)")
+        if not Path(args.mapping).is_file():
+            raise CommandError(f"--mapping {args.mapping!r}: file not found")
     if not 0 <= args.port <= 65535:
         raise CommandError(f"--port: expected 0..65535 (0: a free port), got {args.port}")
     save_as = None
     if args.save_as is not None:
         save_as = Path(args.save_as)
         folder = save_as.parent if str(save_as.parent) else Path(".")
-        if save_as.suffix.lower() != ".npz":
-            raise CommandError(f"--save-as {args.save_as!r}: expected a .npz rig file")
+        from ..viewer.server import RIG_TARGETS
+
+        if save_as.suffix.lower() not in RIG_TARGETS:
+            raise CommandError(f"--save-as {args.save_as!r}: expected a rig file "
+                               f"({', '.join(RIG_TARGETS)})")
         if not folder.is_dir():
             raise CommandError(f"--save-as {args.save_as!r}: folder {str(folder)!r} does "
                                f"not exist")
@@ -143,12 +175,24 @@ def _check(args: argparse.Namespace):
     return kind, save_as
 
 
+def _rig_extensions() -> tuple[str, ...]:
+    """The rig files stbs view reads: those of stbs.io.read_rig."""
+    from ..io import RIG_EXTENSIONS
+
+    return tuple(RIG_EXTENSIONS)
+
+
+def _is_gltf(path) -> bool:
+    return str(path).lower().endswith((".gltf", ".glb"))
+
+
 def _targets(kind: str, path: str | None, save_as):
     """Where the page may write: (rig file, pose folder); None where saving is off.
 
     --save-as: the rig goes there and poses into its folder. Otherwise poses go into
     the input's folder and the rig beside the input: RIG.npz as RIG-edited.npz (never
-    the input itself), MESH as MESH.npz; an example without --save-as saves nothing.
+    the input itself), a glTF character CHAR.glb as CHAR-edited.glb (other characters
+    as CHAR-edited.npz), MESH as MESH.npz; an example without --save-as saves nothing.
     """
     from pathlib import Path
 
@@ -157,8 +201,11 @@ def _targets(kind: str, path: str | None, save_as):
     if kind == "example":
         return None, None
     p = Path(path)
-    stem = p.stem + ("-edited" if kind == "rig" else "")
-    return p.with_name(stem + ".npz"), (p.parent if str(p.parent) else Path("."))
+    folder = p.parent if str(p.parent) else Path(".")
+    if kind != "rig":
+        return p.with_name(p.stem + ".npz"), folder
+    ext = p.suffix.lower() if _is_gltf(p) or p.suffix.lower() == ".npz" else ".npz"
+    return p.with_name(p.stem + "-edited" + ext), folder
 
 
 def _example(name: str):
@@ -191,30 +238,52 @@ def _rig_from_files(args: argparse.Namespace):
                           tets=args.tets or "auto", tol=tol, clip_skeleton=args.clip_skeleton)
 
 
-def _motion(args: argparse.Namespace, rig, kind: str):
-    """The clip the timeline opens with: --motion, else a glTF rig's first animation
-    (skipped with a warning when it has no clip file form)."""
-    import warnings
+def _character_options(args: argparse.Namespace) -> dict:
+    """--skin, --mesh as the character readers' keyword options (digits: an index)."""
+    out = {}
+    for key in ("skin", "mesh"):
+        v = getattr(args, key)
+        if v is not None:
+            out[key] = int(v) if v.isdigit() else v
+    return out
 
+
+def _read_character(path: str, options: dict):
+    """(rig, clips) of a rig or character file; clips: its own animations by name."""
+    from .. import io as sio
+    from ._errors import CommandError
+
+    ext = path.lower().rsplit(".", 1)[-1]
+    reader = sio.read_gltf if ext in ("gltf", "glb") else getattr(sio, f"read_{ext}", None)
+    try:
+        if ext != "npz" and reader is not None:
+            return reader(path, **options)
+        return sio.read_rig(path, **options), {}
+    except TypeError as exc:     # an option this reader does not take
+        flags = ", ".join(f"--{k}" for k in options) or "these options"
+        raise CommandError(f"{path!r}: {flags} not taken for this file ({exc})") from None
+
+
+def _first_animation(clips: dict):
+    """The first animation that moves (an FBX file may open with a still "Take 001"),
+    else the first, else None."""
+    import numpy as np
+
+    for clip in clips.values():
+        if len(clip) > 1 and any(np.ptp(a, axis=0).max() > 1e-9 for a in (
+                clip.quaternions, clip.offsets, clip.stretch, clip.twist)):
+            return clip
+    return next(iter(clips.values()), None)
+
+
+def _motion(args: argparse.Namespace, rig, clips: dict):
+    """The clip the timeline opens with: --motion (a BVH capture retargeted with
+    --mapping), else the character's own first animation, else None."""
     from ..bake import load_motion
 
     if args.motion is not None:
-        return load_motion(args.motion, rig)
-    if kind != "rig" or not args.input.lower().endswith((".gltf", ".glb")):
-        return None
-    from ..io import clip_to_dict, read_gltf
-
-    _, clips = read_gltf(args.input)
-    if not clips:
-        return None
-    name, clip = next(iter(clips.items()))
-    try:
-        clip_to_dict(clip)
-    except ValueError as exc:
-        warnings.warn(f"{args.input!r}: its animation {name!r} cannot go on the timeline "
-                      f"({exc})", UserWarning, stacklevel=2)
-        return None
-    return clip
+        return load_motion(args.motion, rig, mapping=args.mapping)
+    return _first_animation(clips)
 
 
 def _serve(args: argparse.Namespace, kind: str, save_as):
@@ -222,25 +291,27 @@ def _serve(args: argparse.Namespace, kind: str, save_as):
     import errno
     from pathlib import Path
 
-    from ..io import read_rig
     from ..viewer import ViewerServer
     from ._errors import CommandError
 
     extras: dict = {}
+    own: dict = {}
     if kind == "example":
         name = args.example or EXAMPLES[0]
         rig, extras = _example(name)
     elif kind == "rig":
         name = Path(args.input).stem
-        rig = read_rig(args.input)
+        rig, own = _read_character(args.input, _character_options(args))
     else:
         name = Path(args.input).stem
         rig = _rig_from_files(args)
     rig_target, pose_folder = _targets(kind, args.input, save_as)
-    clip = _motion(args, rig, kind)
+    source = args.input if kind == "rig" and _is_gltf(args.input) else None
+    clip = _motion(args, rig, own)
     try:
         return ViewerServer(rig, port=args.port, rig_target=rig_target,
-                            pose_folder=pose_folder, name=name, extras=extras, clip=clip)
+                            pose_folder=pose_folder, name=name, extras=extras, clip=clip,
+                            rig_source=source)
     except OSError as exc:
         why = exc.strerror or str(exc)
         if exc.errno == errno.EADDRINUSE:

@@ -2,13 +2,16 @@
 
 :class:`ViewerServer` serves one rig on 127.0.0.1 with a fresh token per run: the page
 and its assets (``static/``), the rig's summary and arrays as the page's shaders take
-them (:class:`RigPayload`: positions, faces, skeleton, the four heaviest bones per
-vertex with their bone and endpoint weights), the current pose, and atomic saves of
-poses and of the rig. The rules it enforces (Host, token, confined paths, body
-limits) are in :mod:`stbs.viewer.server` and docs/viewer.md.
+them (:class:`RigPayload`: positions, faces, the skeleton with its hierarchy, the four
+heaviest bones per vertex with their bone and endpoint weights), the current pose, the
+clips the page plays (held by id and evaluated by :meth:`stbs.Clip.arrays`, see
+:mod:`stbs.viewer.clips`), and atomic saves of poses, clips and the rig (``.npz`` or
+glTF). The rules it enforces (Host, token, confined paths, body limits) are in
+:mod:`stbs.viewer.server` and docs/viewer.md.
 
-The page that renders and skins the rig in the browser is not part of this release:
-the ``static/index.html`` shipped here says so and lists the API.
+The page itself (``static/index.html`` and the bundle ``static/viewer.js``, built from
+``viewer/src`` by ``make``) skins the rig in a vertex shader; without the bundle the
+page says so and lists the API.
 """
 
 from .payload import ARRAY_DOCS, MAX_INFLUENCES, RigPayload

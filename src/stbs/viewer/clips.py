@@ -1,10 +1,14 @@
-"""The viewer server's clip routes: sample a clip, pose the rig at a time, save, export a GIF.
+"""The viewer server's clip routes: clips held by id, their frames, save, export a GIF.
 
-:class:`ViewerServer` answers ``POST /api/clip/sample``, ``POST /api/clip/pose``,
-``POST /api/save-clip`` and ``POST /api/export`` with these functions; they check the
-request, raise :class:`Refusal` (an HTTP status and one line) for a bad one, and leave
-the locking and the token and Host rules to the server. Clips are read by
-:func:`stbs.io.read_clip`, so the page plays exactly :meth:`stbs.Clip.pose`.
+The server holds the clips the page plays (:class:`ClipStore`: the clip it was started
+with, and each clip the page built, registered once per edit with ``POST /api/clip``)
+and answers their poses at any times from :meth:`stbs.Clip.arrays`, so the page plays
+and seeks exactly :meth:`stbs.Clip.pose` (step and cubic channels of a character's
+animation included) without sending the clip again. :class:`ViewerServer` answers
+``/api/clip...``, ``POST /api/save-clip`` and ``POST /api/export`` with these
+functions; they check the request, raise :class:`Refusal` (an HTTP status and one
+line) for a bad one, and leave the locking and the token and Host rules to the server.
+Clip objects a request sends are read by :func:`stbs.io.read_clip`.
 """
 
 from __future__ import annotations
@@ -16,22 +20,32 @@ import json
 import math
 import os
 import re
+import secrets
+from collections import OrderedDict
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
+from urllib.parse import parse_qs
+
+import numpy as np
 
 from .. import _optional
 from ..clip import Clip
-from ..io import atomic_open, pose_to_dict, read_clip, write_clip
+from ..io import atomic_open, clip_to_dict, read_clip
 from ..pose import Pose
 from ..skeleton import Skeleton
 
-__all__ = ["Refusal", "MAX_FRAMES", "MAX_EXPORT_FRAMES", "MAX_EXPORT_PIXELS", "CLIP_NAME",
-           "GIF_NAME", "read_request_clip", "sample", "clip_pose", "pose_object",
-           "target_in", "save_clip", "export_gif"]
+__all__ = ["Refusal", "ClipStore", "MAX_FRAMES", "MAX_CLIPS", "MAX_EXPORT_FRAMES",
+           "MAX_EXPORT_PIXELS", "CLIP_NAME", "GIF_NAME", "CLIP_ID", "read_request_clip",
+           "summary", "frames", "sample", "clip_pose", "target_in", "save_clip", "export_gif"]
 
-#: Most frames ``/api/clip/sample`` answers (the clip's fps grid, or explicit times).
+#: Most frames one request answers (``/api/clip/ID/frames``, ``/api/clip/sample``).
 MAX_FRAMES = 2000
+#: Clips the page registered that the server keeps (the least recently used go first;
+#: the clip the server was started with is always kept).
+MAX_CLIPS = 16
+#: A clip id: 16 hex digits.
+CLIP_ID = re.compile(r"[0-9a-f]{16}\Z")
 #: Most frames ``/api/export`` takes.
 MAX_EXPORT_FRAMES = 600
 #: Largest frame ``/api/export`` takes, in pixels (width x height).
@@ -89,13 +103,11 @@ def read_request_clip(obj: Any, sk: Skeleton) -> Clip:
         raise Refusal(400, str(exc)) from None
 
 
-def _bones(pose: Pose) -> dict:
-    return {"rotations": pose.rotations.tolist(), "origins": pose.origins.tolist(),
-            "stretch": pose.stretch.tolist(), "twist": pose.twist.tolist()}
-
-
 def sample(obj: Any, sk: Skeleton) -> dict:
     """``POST /api/clip/sample``: a clip (plus optional ``"times"``) -> per-frame bone arrays.
+
+    The whole clip in the request and every frame as JSON: for scripts; the page uses
+    the clips the server holds (:func:`frames`).
 
     The body is a clip file's object; an extra key ``"times": [t, ...]`` asks for the
     poses at those times instead of the clip's fps grid (:meth:`stbs.Clip.sample_times`).
@@ -120,31 +132,125 @@ def sample(obj: Any, sk: Skeleton) -> dict:
             raise Refusal(400, f"clip: {clip.duration:g} s at {clip.fps:g} fps is {len(grid)} "
                                f"frames; at most {MAX_FRAMES} are sampled (lower the fps)")
         times = grid.tolist()
+    R, O, sigma, theta = clip.arrays(np.asarray(times, dtype=float))
+    rows = [{"rotations": R[k].tolist(), "origins": O[k].tolist(),
+               "stretch": sigma[k].tolist(), "twist": theta[k].tolist()}
+              for k in range(len(times))]
     return {"fps": clip.fps, "interpolation": clip.interpolation, "start": clip.start,
             "end": clip.end, "duration": clip.duration, "keys": clip.times.tolist(),
-            "times": times, "frames": [_bones(clip.pose(t)) for t in times]}
+            "times": times, "frames": rows}
 
 
-def pose_object(pose: Pose) -> tuple[dict, bool]:
-    """A pose file object for ``pose`` and whether it gives ``pose`` exactly.
+class ClipStore:
+    """The clips the viewer plays, held by id (16 hex digits).
 
-    Between keys a clip's joints may part (origins are interpolated linearly), and
-    then neither pose-file form holds the pose; the joints form of its mean joints
-    (:meth:`stbs.Pose.joints`) and its twists stands in for it.
+    The clip the server was started with (``started``) is kept for good; the page
+    registers each clip it builds once per edit (``POST /api/clip``) and the server
+    keeps the :data:`MAX_CLIPS` used last of those. Not thread-safe: the server calls
+    it under its lock.
+
+    Parameters
+    ----------
+    sk : Skeleton
+        The rig's skeleton; every clip must pose an equal one.
+    clip : Clip, optional
+        The clip to start with.
     """
+
+    def __init__(self, sk: Skeleton, clip: Clip | None = None):
+        self.skeleton = sk
+        self._clips: OrderedDict[str, Clip] = OrderedDict()
+        self._files: dict[str, dict] = {}
+        self.started: str | None = None
+        if clip is not None:
+            if not isinstance(clip, Clip) or clip.skeleton != sk:
+                raise ValueError("clip must be a stbs.Clip of the rig's skeleton")
+            self.started = self.add(clip)
+
+    def add(self, clip: Clip) -> str:
+        """Hold ``clip``; its new id."""
+        cid = secrets.token_hex(8)
+        self._clips[cid] = clip
+        mine = [k for k in self._clips if k != self.started]
+        for k in mine[:max(0, len(mine) - MAX_CLIPS)]:
+            del self._clips[k]
+            self._files.pop(k, None)
+        return cid
+
+    def get(self, cid: str) -> Clip:
+        """The clip of id ``cid`` (404 for an unknown or dropped id)."""
+        clip = self._clips.get(cid)
+        if clip is None:
+            raise Refusal(404, f"no clip {cid!r} on this server (the page's clips are kept "
+                               f"until {MAX_CLIPS} newer ones replace them): POST /api/clip "
+                               "it again")
+        self._clips.move_to_end(cid)
+        return clip
+
+    def file(self, cid: str) -> dict:
+        """The clip file object of clip ``cid`` (made once): its keys' poses."""
+        clip = self.get(cid)
+        if cid not in self._files:
+            self._files[cid] = clip_to_dict(clip)
+        return self._files[cid]
+
+
+def summary(cid: str, clip: Clip) -> dict:
+    """What ``GET /api/clip/ID`` answers: the clip's id, rate, interpolation, span, keys."""
+    return {"id": cid, "fps": clip.fps, "interpolation": clip.interpolation,
+            "start": clip.start, "end": clip.end, "duration": clip.duration,
+            "keys": clip.times.tolist(), "bones": clip.skeleton.n_bones,
+            "dim": clip.skeleton.dim}
+
+
+def _times(query: str) -> np.ndarray:
+    """The ``t=`` of a frames query: 1 to MAX_FRAMES comma-separated seconds."""
     try:
-        return pose_to_dict(pose), True
+        fields = parse_qs(query, keep_blank_values=True, strict_parsing=False,
+                          max_num_fields=8)
     except ValueError:
-        pass
-    sk, scale = pose.skeleton, 180.0 / math.pi
-    obj: dict = {"joints": pose.joints().tolist()}
-    if sk.dim == 3:
-        twist = {sk.names[i]: [float(s * scale), float(e * scale)]
-                 for i, (s, e) in enumerate(pose.twist.tolist()) if s != 0 or e != 0}
-        if twist:
-            obj["twist"] = twist
-    obj["degrees"] = True
-    return obj, False
+        raise Refusal(400, "query: too many fields; expected t=T0,T1,...") from None
+    extra = sorted(set(fields) - {"t", "token"})
+    if extra:
+        raise Refusal(400, f"query: unexpected parameter {extra[0]!r}; expected t=T0,T1,...")
+    given = fields.get("t", [])
+    if len(given) != 1 or not given[0]:
+        raise Refusal(400, f"query: expected t=T0,T1,... once (1 to {MAX_FRAMES} times in "
+                           "seconds, comma-separated)")
+    parts = given[0].split(",")
+    if len(parts) > MAX_FRAMES:
+        raise Refusal(400, f"t: {len(parts)} times; at most {MAX_FRAMES} a request")
+    out = np.empty(len(parts))
+    for k, x in enumerate(parts):
+        try:
+            out[k] = float(x)
+        except ValueError:
+            raise Refusal(400, f"t[{k}]: expected a number of seconds, found {_show(x)}") \
+                from None
+        if not math.isfinite(out[k]):
+            raise Refusal(400, f"t[{k}]: expected a finite number of seconds, found "
+                               f"{_show(x)}")
+    return out
+
+
+def frames(clip: Clip, query: str) -> np.ndarray:
+    """``GET /api/clip/ID/frames?t=T0,T1,...``: the clip's poses at those times, as rows.
+
+    Evaluated in one batch by :meth:`stbs.Clip.arrays`. Returns a (k, b, m) float64
+    array, m = d*d + d + 3: per frame and bone, ``R_i`` row-major (d*d), ``a'_i`` (d),
+    ``sigma_i``, ``theta_a,i``, ``theta_b,i`` (radians).
+    """
+    t = _times(query)
+    R, O, sigma, theta = clip.arrays(t)
+    k, b, d = R.shape[0], R.shape[1], R.shape[2]
+    return np.concatenate([R.reshape(k, b, d * d), O, sigma[..., None], theta], axis=-1)
+
+
+def clip_pose_at(clip: Clip, obj: Any) -> tuple[Pose, float]:
+    """``POST /api/clip/ID/pose``: ``{"time": t}`` -> (the clip's pose at t, t)."""
+    obj = _object("request body", obj, ("time",), ("time",))
+    t = _time('"time"', obj["time"])
+    return clip.pose(t), t
 
 
 def clip_pose(obj: Any, sk: Skeleton) -> tuple[Pose, float]:
@@ -193,25 +299,49 @@ def _folder(folder: Path | None, what: str) -> Path:
     return folder
 
 
-def save_clip(obj: Any, sk: Skeleton, folder: Path | None, rig_name: str) -> dict:
-    """``POST /api/save-clip``: ``{"clip", "name"?, "overwrite"?}`` -> the clip file written.
+def save_clip(obj: Any, store: ClipStore, folder: Path | None, rig_name: str) -> dict:
+    """``POST /api/save-clip``: ``{"clip" or "id", "fps"?, "name"?, "overwrite"?}`` -> the
+    clip file written.
 
-    Call with the server's lock held (the name is chosen and written in one step).
+    ``"clip"``: a clip file object; ``"id"``: a clip the server holds (its keys' poses
+    written, at ``"fps"`` when given). Call with the server's lock held (the name is
+    chosen and written in one step).
     """
-    obj = _object("request body", obj, ("clip", "name", "overwrite"), ("clip",))
+    obj = _object("request body", obj, ("clip", "id", "fps", "name", "overwrite"), ())
+    if ("clip" in obj) == ("id" in obj):
+        raise Refusal(400, 'request body: expected "clip" (a clip file object) or "id" (a '
+                           "clip the server holds), one of them")
     overwrite = _overwrite(obj)
-    clip = read_request_clip(obj["clip"], sk)
+    if "clip" in obj:
+        if "fps" in obj:
+            raise Refusal(400, 'request body: "fps" goes with "id"; a clip object has its own')
+        clip = read_request_clip(obj["clip"], store.skeleton)
+        body = clip_to_dict(clip)
+    else:
+        clip = store.get(_clip_id(obj["id"]))
+        body = dict(store.file(obj["id"]))
+        if "fps" in obj:
+            fps = obj["fps"]
+            if isinstance(fps, bool) or not isinstance(fps, (int, float)) or \
+                    not math.isfinite(fps) or fps <= 0:
+                raise Refusal(400, f'"fps": expected a number > 0, found {_show(fps)}')
+            body["fps"] = float(fps)
     folder = _folder(folder, "clips")
     target = target_in(folder, obj.get("name"), default_stem=f"{rig_name}-clip",
                        pattern=CLIP_NAME, suffix=".json", overwrite=overwrite)
     try:
-        write_clip(target, clip)
-    except ValueError as exc:      # a key's pose that no pose-file form holds
-        raise Refusal(400, str(exc)) from None
+        with atomic_open(target, "w") as f:
+            f.write(json.dumps(body, indent=1) + "\n")
     except OSError as exc:
         raise Refusal(500, f"could not write {str(target)!r}: "
                            f"{exc.strerror or exc}") from None
     return {"path": str(target), "name": target.name, "keys": len(clip)}
+
+
+def _clip_id(x: Any) -> str:
+    if not (isinstance(x, str) and CLIP_ID.match(x)):
+        raise Refusal(400, f'"id": expected a clip id (16 hex digits), found {_show(x)}')
+    return x
 
 
 def _png(where: str, x: Any) -> bytes:

@@ -208,6 +208,9 @@ class RigPayload:
             "methods": list(METHODS),
             "method": "stbs-dqs",
             "parents": [int(p) for p in sk.parents],
+            "connected": [bool(c) for c in sk.connected],
+            "hang": [float(t) for t in sk.hang],
+            "rest_joints": sk.C.tolist(),
             "has_E": bool(self.has_E),
             "faces": int(faces),
             "faces_from": ("rig" if rig.F is not None else

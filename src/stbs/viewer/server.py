@@ -20,6 +20,11 @@ request goes through, in this order (docs/viewer.md has the full API):
 5. **Bodies** are read only with a ``Content-Length`` (chunked bodies: 411) of at most
    ``max_body`` bytes (else 413, without reading it).
 
+The clips the page plays are held by the server (:class:`stbs.viewer.clips.ClipStore`):
+the page registers a clip once per edit (``POST /api/clip``) and asks for its poses at
+any times (``GET /api/clip/ID/frames?t=...``, evaluated by :meth:`stbs.Clip.arrays`), so
+a seek or playback never sends the clip again.
+
 Writes (``/api/save-pose``, ``/api/save-clip``, ``/api/export``, ``/api/save-rig``)
 go to a temporary file then rename
 (:mod:`stbs.io`'s atomic writers), only into the folder and the file the server was
@@ -44,14 +49,14 @@ from urllib.parse import parse_qs
 
 import numpy as np
 
-from ..io import clip_to_dict, pose_to_dict, read_pose, save_rig, write_pose
+from ..io import pose_to_dict, read_pose, write_pose, write_rig
 from ..pose import Pose
 from ..rig import Rig
 from . import clips
 from .payload import RigPayload
 
 __all__ = ["ViewerServer", "STATIC_DIR", "MAX_BODY", "HOST", "TOKEN_HEADER",
-           "POSE_NAME", "static_path"]
+           "POSE_NAME", "RIG_TARGETS", "static_path"]
 
 #: The only address the server listens on.
 HOST = "127.0.0.1"
@@ -66,6 +71,12 @@ POSE_NAME = re.compile(r"[A-Za-z0-9_][A-Za-z0-9_.-]{0,99}\.json\Z")
 
 _SEGMENT = re.compile(r"[A-Za-z0-9_-][A-Za-z0-9_.-]*\Z")
 _ARRAY = re.compile(r"/api/rig/([A-Za-z0-9]+)\.bin\Z")
+#: ``/api/clip/ID`` and its sub-resources: (id, "" | "/keys" | "/frames" | "/pose").
+_CLIP = re.compile(r"/api/clip/([0-9a-f]{16})(|/keys|/frames|/pose)\Z")
+#: The methods each ``/api/clip/ID`` resource takes.
+_CLIP_METHODS = {"": ("GET",), "/keys": ("GET",), "/frames": ("GET",), "/pose": ("POST",)}
+#: Rig files the page's rig may be saved as.
+RIG_TARGETS = (".npz", ".glb", ".gltf")
 #: The clip routes (all POST) and the ViewerServer method that answers each.
 _CLIP_ROUTES = {"/api/clip/sample": "clip_sample", "/api/clip/pose": "set_clip_pose",
                 "/api/save-clip": "save_clip", "/api/export": "export_clip"}
@@ -152,8 +163,13 @@ class ViewerServer:
         The page (``index.html``) and its assets; default the package's
         :data:`STATIC_DIR`.
     rig_target : path, keyword-only
-        Where ``POST /api/save-rig`` writes the rig (a ``.npz`` file whose folder
-        exists); None: saving the rig is refused (409).
+        Where ``POST /api/save-rig`` writes the rig (a ``.npz``, ``.glb`` or ``.gltf``
+        file whose folder exists, written by :func:`stbs.io.write_rig`); None: saving
+        the rig is refused (409).
+    rig_source : path, keyword-only
+        The glTF file the rig was read from: a glTF ``rig_target`` is then that file
+        with the rig's endpoint weights added (``write_rig(..., source=)``), keeping
+        its nodes, animations and materials; without it glTF is written afresh.
     pose_folder : path, keyword-only
         The folder ``POST /api/save-pose`` writes pose files into; None: refused (409).
     name : str, keyword-only
@@ -167,8 +183,8 @@ class ViewerServer:
         Log each request (method, path without its query, status) on stderr.
     clip : Clip, keyword-only, optional
         An animation of the rig's skeleton to open the page's timeline with (``GET
-        /api/clip``), e.g. a capture retargeted onto the rig or a glTF file's own
-        animation; it must have a clip file form (:func:`stbs.io.clip_to_dict`).
+        /api/clip``), e.g. a capture retargeted onto the rig or a character file's own
+        animation; held as it is, so the page plays exactly :meth:`stbs.Clip.pose`.
 
     Raises
     ------
@@ -198,7 +214,7 @@ class ViewerServer:
                  rig_target: str | os.PathLike | None = None,
                  pose_folder: str | os.PathLike | None = None, name: str = "rig",
                  extras: dict | None = None, max_body: int = MAX_BODY, verbose: bool = False,
-                 clip=None):
+                 clip=None, rig_source: str | os.PathLike | None = None):
         if isinstance(port, bool) or not isinstance(port, int) or not 0 <= port <= 65535:
             raise ValueError(f"port must be an integer in 0..65535 (0: any free port), "
                              f"got {port!r}")
@@ -207,20 +223,17 @@ class ViewerServer:
         self.payload = RigPayload(rig, extras=extras)
         self.static_dir = Path(STATIC_DIR if static_dir is None else static_dir)
         self.rig_target = None if rig_target is None else Path(rig_target)
-        if self.rig_target is not None and (self.rig_target.suffix.lower() != ".npz"
+        if self.rig_target is not None and (self.rig_target.suffix.lower() not in RIG_TARGETS
                                             or not self.rig_target.parent.is_dir()):
-            raise ValueError(f"rig_target must be a .npz file in an existing folder, got "
-                             f"{str(self.rig_target)!r}")
+            raise ValueError(f"rig_target must be a {', '.join(RIG_TARGETS)} file in an "
+                             f"existing folder, got {str(self.rig_target)!r}")
+        self.rig_source = None if rig_source is None else Path(rig_source)
         self.pose_folder = None if pose_folder is None else Path(pose_folder)
         if self.pose_folder is not None and not self.pose_folder.is_dir():
             raise ValueError(f"pose_folder must be an existing folder, got "
                              f"{str(self.pose_folder)!r}")
         self.name = str(name)
-        self._clip_obj = None
-        if clip is not None:
-            if getattr(clip, "skeleton", None) != rig.skeleton:
-                raise ValueError("clip must be a stbs.Clip of the rig's skeleton")
-            self._clip_obj = clip_to_dict(clip)
+        self.clips = clips.ClipStore(rig.skeleton, clip)
         self.max_body = max_body
         self.verbose = bool(verbose)
         self.token = secrets.token_hex(16)
@@ -291,15 +304,42 @@ class ViewerServer:
         info = self.payload.info()
         info.update(name=self.name, save={"rig": self.rig_target is not None,
                                           "pose": self.pose_folder is not None},
-                    clip=self._clip_obj is not None)
+                    clip=self.clips.started is not None)
         return info
 
     def get_clip(self) -> dict:
-        """``GET /api/clip``: the clip the server was started with, as a clip file object."""
-        if self._clip_obj is None:
-            raise _Refused(404, "/api/clip: this viewer was started without a clip "
-                                "(stbs view RIG --motion FILE)")
-        return {"clip": self._clip_obj}
+        """``GET /api/clip``: the summary of the clip the server was started with."""
+        with self._lock:
+            cid = self.clips.started
+            if cid is None:
+                raise _Refused(404, "/api/clip: this viewer was started without a clip "
+                                    "(stbs view RIG --motion FILE)")
+            return clips.summary(cid, self.clips.get(cid))
+
+    def add_clip(self, obj: Any) -> dict:
+        """``POST /api/clip``: hold a clip (a clip file object); its summary with its id."""
+        clip = clips.read_request_clip(obj, self.rig.skeleton)
+        with self._lock:
+            return clips.summary(self.clips.add(clip), clip)
+
+    def clip_resource(self, cid: str, part: str, query: str = "", obj: Any = None):
+        """``/api/clip/ID`` (summary), ``/keys`` (the clip file object), ``/frames``
+        (rows, :func:`stbs.viewer.clips.frames`) and ``/pose`` (the clip's pose at a
+        time becomes the current pose)."""
+        with self._lock:
+            clip = self.clips.get(cid)
+            if part == "":
+                return clips.summary(cid, clip)
+            if part == "/keys":
+                return {"clip": self.clips.file(cid)}
+        if part == "/frames":
+            return clips.frames(clip, query)
+        pose, t = clips.clip_pose_at(clip, obj)
+        pose_obj = pose_to_dict(pose)
+        with self._lock:
+            self.pose = pose
+            self._pose_obj = pose_obj
+        return {"pose": dict(pose_obj), "time": t}
 
     def get_pose(self) -> dict:
         with self._lock:
@@ -309,7 +349,7 @@ class ViewerServer:
         pose = self._read_pose(obj)
         with self._lock:
             self.pose = pose
-            self._pose_obj = self._canonical(pose, obj)
+            self._pose_obj = pose_to_dict(pose)
             return dict(self._pose_obj)
 
     def pose_bones(self) -> dict:
@@ -332,13 +372,6 @@ class ViewerServer:
             return read_pose(obj, self.rig.skeleton)
         except (ValueError, TypeError) as exc:
             raise _Refused(400, _one_line(exc)) from None
-
-    @staticmethod
-    def _canonical(pose: Pose, obj: Any) -> dict:
-        try:
-            return pose_to_dict(pose)
-        except ValueError:      # not expected for a pose read from a file: keep it as sent
-            return dict(obj)
 
     def save_pose(self, obj: Any) -> dict:
         if not isinstance(obj, dict):
@@ -384,18 +417,19 @@ class ViewerServer:
         return clips.sample(obj, self.rig.skeleton)
 
     def set_clip_pose(self, obj: Any) -> dict:
-        """``POST /api/clip/pose``: make the clip's pose at a time the current pose."""
+        """``POST /api/clip/pose``: make the pose at a time of a clip sent whole the
+        current pose (the page uses ``POST /api/clip/ID/pose``)."""
         pose, t = clips.clip_pose(obj, self.rig.skeleton)
-        pose_obj, exact = clips.pose_object(pose)
+        pose_obj = pose_to_dict(pose)
         with self._lock:
             self.pose = pose
             self._pose_obj = pose_obj
-        return {"pose": dict(pose_obj), "exact": exact, "time": t}
+        return {"pose": dict(pose_obj), "time": t}
 
     def save_clip(self, obj: Any) -> dict:
         """``POST /api/save-clip``: write a clip file into the pose folder."""
         with self._lock:
-            return clips.save_clip(obj, self.rig.skeleton, self.pose_folder, self.name)
+            return clips.save_clip(obj, self.clips, self.pose_folder, self.name)
 
     def export_clip(self, obj: Any) -> dict:
         """``POST /api/export``: write the page's frames as an animated GIF (pose folder)."""
@@ -407,6 +441,17 @@ class ViewerServer:
             raise _Refused(409, "saving the rig is off: start stbs view with --save-as PATH")
         with self._lock:
             rig = self.rig
+            if W is not None and self._keeps_skin():
+                # a character's file keeps its own skin weights (JOINTS_0/WEIGHTS_0): only
+                # the endpoint weights are added to it, so painted bone weights would be lost
+                old = self.payload.W
+                old = old.toarray() if hasattr(old, "toarray") else np.asarray(old)
+                if np.abs(np.asarray(W, dtype=np.float64) - old).max(initial=0) > 1e-6:
+                    raise _Refused(409, f"{self.rig_target.name}: the bone weights were "
+                                        "painted, and a glTF character keeps its own skin "
+                                        "weights (only endpoint weights are added to it); "
+                                        "save the rig as .npz (stbs view --save-as RIG.npz)")
+                W = None
             if W is not None or E is not None:
                 rig = self._with_weights(rig, W, E)
                 try:
@@ -414,7 +459,10 @@ class ViewerServer:
                 except (ValueError, TypeError) as exc:
                     raise _Refused(400, _one_line(exc)) from None
             try:
-                save_rig(self.rig_target, rig)
+                write_rig(self.rig_target, rig, source=self.rig_source)
+            except ValueError as exc:   # e.g. no endpoint weights to add to a glTF file
+                raise _Refused(409, f"could not write {self.rig_target.name}: "
+                                    f"{_one_line(exc)}") from None
             except OSError as exc:
                 raise _Refused(500, f"could not write {str(self.rig_target)!r}: "
                                     f"{exc.strerror or _one_line(exc)}") from None
@@ -422,6 +470,12 @@ class ViewerServer:
                 self.payload = payload
         return {"path": str(self.rig_target), "vertices": int(len(rig.V)),
                 "bones": int(rig.skeleton.n_bones), "has_E": rig.E is not None}
+
+    def _keeps_skin(self) -> bool:
+        """Whether the rig is saved into a copy of its glTF file (endpoint weights added)."""
+        return (self.rig_target is not None and self.rig_source is not None
+                and self.rig_target.suffix.lower() in (".glb", ".gltf")
+                and self.rig_source.suffix.lower() in (".glb", ".gltf"))
 
     def endpoint_column(self, obj: Any) -> tuple[int, str, np.ndarray]:
         """One bone's endpoint weights by a method of :func:`stbs.weights.endpoint_weights`.
@@ -668,10 +722,11 @@ class _Handler(BaseHTTPRequestHandler):
         routes = {"/api/rig": ("GET",), "/api/pose": ("GET", "POST"),
                   "/api/pose/bones": ("GET",),
                   "/api/save-pose": ("POST",), "/api/save-rig": ("POST",),
-                  "/api/endpoint-weights": ("POST",), "/api/clip": ("GET",)}
+                  "/api/endpoint-weights": ("POST",), "/api/clip": ("GET", "POST")}
         routes.update(dict.fromkeys(_CLIP_ROUTES, ("POST",)))
         m = _ARRAY.match(path)
-        allowed = ("GET",) if m else routes.get(path)
+        c = None if m or path in routes else _CLIP.match(path)
+        allowed = ("GET",) if m else _CLIP_METHODS[c.group(2)] if c else routes.get(path)
         if allowed is None:
             raise _Refused(404, f"{path}: not found")
         if method not in allowed:
@@ -679,6 +734,8 @@ class _Handler(BaseHTTPRequestHandler):
                            {"Allow": ", ".join(allowed)})
         if m:
             return self._array(m.group(1))
+        if c:
+            return self._clip_resource(c.group(1), c.group(2), query)
         if path == "/api/rig":
             return self._json(viewer.info())
         if path == "/api/pose":
@@ -688,7 +745,9 @@ class _Handler(BaseHTTPRequestHandler):
         if path == "/api/pose/bones":
             return self._json(viewer.pose_bones())
         if path == "/api/clip":
-            return self._json(viewer.get_clip())
+            if method == "GET":
+                return self._json(viewer.get_clip())
+            return self._clip_call(viewer.add_clip, self._json_body())
         if path == "/api/save-pose":
             return self._json(viewer.save_pose(self._json_body()))
         if path == "/api/endpoint-weights":
@@ -699,12 +758,28 @@ class _Handler(BaseHTTPRequestHandler):
 
     def _clip_route(self, path: str) -> None:
         viewer = self.server.viewer
-        call = getattr(viewer, _CLIP_ROUTES[path])
-        body = self._json_body()
+        return self._clip_call(getattr(viewer, _CLIP_ROUTES[path]), self._json_body())
+
+    def _clip_call(self, call, *args) -> None:
         try:
-            return self._json(call(body))
+            return self._json(call(*args))
         except clips.Refusal as r:
             raise _Refused(r.status, r.message) from None
+
+    def _clip_resource(self, cid: str, part: str, query: str) -> None:
+        viewer = self.server.viewer
+        body = self._json_body() if part == "/pose" else None
+        try:
+            out = viewer.clip_resource(cid, part, query, body)
+        except clips.Refusal as r:
+            raise _Refused(r.status, r.message) from None
+        if part != "/frames":
+            return self._json(out)
+        a = np.ascontiguousarray(out, dtype=np.dtype(np.float64).newbyteorder("<"))
+        self._send(200, a.tobytes(), "application/octet-stream",
+                   headers={"X-Stbs-Dtype": "float64",
+                            "X-Stbs-Shape": ",".join(str(s) for s in a.shape),
+                            "X-Stbs-Byte-Order": "little"})
 
     def _static(self, rel: str) -> None:
         p = static_path(self.server.viewer.static_dir, rel)
