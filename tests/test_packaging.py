@@ -44,6 +44,7 @@ INSTALLS_ON_BOOKWORM = {
     "dask": "2024.8",        # pure Python
     "distributed": "2024.8",
     "usd-core": "26.11",     # the release tested (its UsdValidation checks the files)
+    "ufbx": "0.0.5",         # the release tested (the binding by ufbx's author)
 }
 # Known not to install there; the reason is the failure message.
 NOT_ON_BOOKWORM = {

@@ -26,6 +26,7 @@ EXTRAS = {
     "igl": ("libigl", "bench"),
     "playwright": ("playwright", "bench"),
     "pygltflib": ("pygltflib", "gltf"),
+    "ufbx": ("ufbx", "fbx"),
     "dask": ("dask", "batch"),
     "distributed": ("distributed", "batch"),
     "pxr": ("usd-core", "usd"),

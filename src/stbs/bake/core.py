@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from ..clip import Clip
-from ..io import atomic_open, read_bvh, read_clip, read_gltf, write_gltf, write_mesh
+from ..io import atomic_open, read_bvh, read_clip, read_fbx, read_gltf, write_gltf, write_mesh
 from ..retargeting import retarget
 from ..rig import Rig
 from ..skinning import METHODS, Deformer
@@ -28,7 +28,7 @@ from ..skinning import METHODS, Deformer
 __all__ = ["load_motion", "frame_times", "bake", "Baked", "MOTION_EXTENSIONS",
            "MESH_FOLDER_FORMATS", "write_frames", "output_kind"]
 
-MOTION_EXTENSIONS = (".bvh", ".gltf", ".glb", ".json")
+MOTION_EXTENSIONS = (".bvh", ".gltf", ".glb", ".fbx", ".json")
 MESH_FOLDER_FORMATS = (".obj", ".ply", ".off")
 
 
@@ -39,7 +39,9 @@ def load_motion(path: str | os.PathLike, rig: Rig, *, mapping=None, twist: str =
     ``.json``: a clip file (:func:`stbs.io.read_clip`). ``.bvh``: retargeted onto the rig
     (:func:`stbs.retarget` with ``mapping``, ``twist``, ``stretch``). ``.gltf``/``.glb``:
     an animation of that file (``animation`` by name; default the first), whose
-    skeleton must be the rig's (e.g. the character's own file).
+    skeleton must be the rig's (e.g. the character's own file). ``.fbx``: likewise an
+    animation stack, by default the first that moves (Mixamo files open with a
+    motionless "Take 001").
     """
     p = Path(os.fspath(path))
     ext = p.suffix.lower()
@@ -49,11 +51,13 @@ def load_motion(path: str | os.PathLike, rig: Rig, *, mapping=None, twist: str =
         return read_clip(p, rig.skeleton)
     if ext == ".bvh":
         return retarget(read_bvh(p), rig, mapping=mapping, twist=twist, stretch=stretch)
-    _, clips = read_gltf(p)
+    _, clips = read_fbx(p) if ext == ".fbx" else read_gltf(p)
     if not clips:
         raise ValueError(f"motion {str(p)!r}: the file has no animation")
     if animation is None:
         clip = next(iter(clips.values()))
+        if ext == ".fbx":
+            clip = next((c for c in clips.values() if _moves(c)), clip)
     elif animation in clips:
         clip = clips[animation]
     else:
@@ -61,9 +65,19 @@ def load_motion(path: str | os.PathLike, rig: Rig, *, mapping=None, twist: str =
                          f"{', '.join(map(repr, clips))}")
     if clip.skeleton != rig.skeleton:
         raise ValueError(f"motion {str(p)!r}: its skeleton ({clip.skeleton!r}) is not the "
-                         f"rig's ({rig.skeleton!r}); bake a glTF character with its own "
-                         f"animations, or give a .bvh or a clip .json")
+                         f"rig's ({rig.skeleton!r}); bake a glTF or FBX character with its "
+                         f"own animations, or give a .bvh or a clip .json")
     return clip
+
+
+def _moves(clip: Clip) -> bool:
+    """Whether the clip's keys differ (beyond rounding) from its first."""
+    size = float(np.ptp(clip.skeleton.C, axis=0).max()) or 1.0
+    return len(clip.times) > 1 and bool(
+        np.ptp(clip.quaternions, axis=0).max() > 1e-9
+        or np.ptp(clip.offsets, axis=0).max() > 1e-9 * size
+        or np.ptp(clip.stretch, axis=0).max() > 1e-9
+        or np.ptp(clip.twist, axis=0).max() > 1e-9)
 
 
 _SLICE = re.compile(r"^\s*(-?\d*)\s*(?::\s*(-?\d*)\s*(?::\s*(-?\d*)\s*)?)?$")

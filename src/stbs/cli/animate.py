@@ -1,4 +1,4 @@
-"""``stbs animate``: bake a motion (BVH, glTF animation, clip JSON) on a rig, or a batch
+"""``stbs animate``: bake a motion (BVH, glTF or FBX animation, clip JSON) on a rig, or a batch
 of rigs × motions (``--manifest``) on Dask."""
 
 from __future__ import annotations
@@ -7,15 +7,16 @@ import argparse
 import sys
 
 NAME = "animate"
-HELP = "bake a motion (BVH, glTF, clip JSON) on a rig into frames (.npz, .glb, meshes)"
+HELP = "bake a motion (BVH, glTF, FBX, clip JSON) on a rig into frames (.npz, .glb, meshes)"
 EXAMPLE = "stbs animate arm.npz --motion wave.json -o arm-wave.glb"
 METHODS = ("lbs", "dqs", "stbs-lbs", "stbs-dqs")
 DESCRIPTION = """\
-Bake an animation: the rig (.npz, or a glTF character .gltf .glb) deformed by every
+Bake an animation: the rig (.npz, or a character: glTF .gltf .glb, FBX .fbx) deformed by every
 frame of a motion, with the rig's Deformer built once so that each frame costs the
 skinning alone. The motion is a clip file (.json, stbs.io.read_clip), a BVH capture
 (.bvh, retargeted onto the rig by joint names or --mapping, its twist spread along
-the bones with --twist spread), or an animation of a glTF file of the same skeleton.
+the bones with --twist spread), or an animation of a glTF or FBX file of the same
+skeleton (the character's own file: CHAR.fbx --motion CHAR.fbx).
 
 Output (-o): a .npz (U (frames, n, d) float32, times, F/T, method), a .glb/.gltf
 whose morph targets play the baked frames in any glTF viewer, or a folder (a path
@@ -36,14 +37,16 @@ EPILOG = f"""examples:
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("rig", nargs="?", metavar="RIG", help="rig: .npz, .gltf or .glb")
-    p.add_argument("--motion", metavar="FILE", help="motion: .bvh, .gltf, .glb or clip .json")
+    p.add_argument("rig", nargs="?", metavar="RIG", help="rig: .npz, .gltf, .glb or .fbx")
+    p.add_argument("--motion", metavar="FILE",
+                   help="motion: .bvh, .gltf, .glb, .fbx or clip .json")
     p.add_argument("-o", "--output", metavar="OUT", help="output: .npz, .glb, .gltf or FOLDER/")
     p.add_argument("--method", choices=METHODS, default="stbs-dqs",
                    help="skinning method (default: %(default)s)")
     p.add_argument("--frames", metavar="A:B:STEP", help="bake these of the sampled frames")
     p.add_argument("--fps", type=float, help="sampling rate (default: the motion's)")
-    p.add_argument("--animation", metavar="NAME", help="glTF motion: the animation to bake")
+    p.add_argument("--animation", metavar="NAME",
+                   help="glTF or FBX motion: the animation (stack) to bake")
     p.add_argument("--mapping", metavar="MAP.json",
                    help="BVH motion: {rig bone: motion joint} for other naming")
     p.add_argument("--twist", choices=("spread", "joint"), default="spread",
@@ -71,6 +74,8 @@ def requires(args: argparse.Namespace) -> list[str]:
     for path in (args.rig, args.motion):
         if path and path.lower().endswith((".gltf", ".glb")):
             need.append("pygltflib")
+        if path and path.lower().endswith(".fbx"):
+            need.append("ufbx")
     return need
 
 

@@ -26,9 +26,10 @@ function               formats
 :func:`write_clip`     .json clip
 :func:`read_bvh`       .bvh motion capture -> :class:`stbs.Motion`
 :func:`read_gltf`      .gltf .glb skinned mesh and animations -> rig, clips
+:func:`read_fbx`       .fbx (binary, ASCII) skinned meshes and animation stacks -> rig, clips
 :func:`write_gltf`     .gltf .glb skin (+ endpoint weights), clip, baked morph targets
 :func:`write_usd`      .usda .usdc .usd: UsdSkel rig, clip, baked points cache
-:func:`read_rig`       .npz .gltf .glb -> :class:`stbs.Rig`
+:func:`read_rig`       .npz .gltf .glb .fbx -> :class:`stbs.Rig`
 :func:`write_rig`      .npz .gltf .glb (a glTF character keeps its file, plus E)
 :func:`read_polygons`  .poly (Triangle's planar straight-line graph) -> polygons
 =====================  ==============================================
@@ -41,6 +42,7 @@ from .bvh import read_bvh
 from .clip import clip_to_dict, read_clip, write_clip
 from .dmat import read_dmat, write_dmat
 from .errors import FormatError
+from .fbx import FBX_EXTENSIONS, read_fbx
 from .gltf import GLTF_EXTENSIONS, read_gltf
 from .gltf_write import write_gltf
 from .mesh import MESH_READ_EXTENSIONS, MESH_WRITE_EXTENSIONS, Mesh, read_mesh, write_mesh
@@ -62,5 +64,6 @@ __all__ = [
     "read_clip", "write_clip", "clip_to_dict",
     "read_polygons", "read_bvh", "read_gltf", "write_gltf", "GLTF_EXTENSIONS",
     "read_rig", "write_rig", "RIG_EXTENSIONS", "write_usd", "USD_EXTENSIONS",
+    "read_fbx", "FBX_EXTENSIONS",
     "atomic_open", "atomic_save", "atomic_write",
 ]

@@ -1,4 +1,5 @@
-"""A rig from or to any rig file: the native ``.npz`` or a glTF character.
+"""A rig from or to any rig file: the native ``.npz``, a glTF character, or (to read) an
+FBX character.
 
 The paper's promise is that STBS needs "only an extra scalar weight function per
 bone ... without changing the existing skeleton rig or bone weights". So a glTF
@@ -22,26 +23,31 @@ from ..rig.model import Rig
 from ._atomic import atomic_open
 from ._parse import input_path, suffix
 from .errors import FormatError
+from .fbx import FBX_EXTENSIONS
+from .fbx import _read as _read_fbx
 from .gltf import GLTF_EXTENSIONS, _File, read_gltf
 from .gltf_write import glb_bytes, write_gltf
 from .rig import load_rig, save_rig
 
 __all__ = ["read_rig", "write_rig", "RIG_EXTENSIONS"]
 
-RIG_EXTENSIONS = (".npz", *GLTF_EXTENSIONS)
+RIG_EXTENSIONS = (".npz", *GLTF_EXTENSIONS, *FBX_EXTENSIONS)
 
 
 def read_rig(path: str | os.PathLike, **gltf_options: Any) -> Rig:
-    """The rig in a ``.npz`` rig file or a glTF 2.0 file (``.gltf``/``.glb``).
+    """The rig in a ``.npz`` rig file, a glTF 2.0 file (``.gltf``/``.glb``) or an FBX file.
 
-    ``gltf_options`` (``skin=``, ``mesh=``) pick the skinned mesh of a glTF file
-    (see :func:`stbs.io.read_gltf`); its animations are not read here.
+    ``gltf_options`` (``skin=``, ``mesh=``) pick the skinned mesh of a glTF file or the
+    skeleton of an FBX file (see :func:`stbs.io.read_gltf`, :func:`stbs.io.read_fbx`);
+    their animations are not read here.
     """
     ext = suffix(path, RIG_EXTENSIONS, "read_rig")
     if ext == ".npz":
         if gltf_options:
             raise TypeError(f"{', '.join(gltf_options)}: options for glTF files, not .npz")
         return load_rig(path)
+    if ext in FBX_EXTENSIONS:
+        return _read_fbx(path, anims=False, **gltf_options)[0]
     return read_gltf(path, **gltf_options)[0]
 
 
@@ -62,6 +68,9 @@ def write_rig(path: str | os.PathLike, rig: Rig, *, source: str | os.PathLike | 
         is written afresh by :func:`stbs.io.write_gltf`.
     """
     ext = suffix(path, RIG_EXTENSIONS, "write_rig")
+    if ext in FBX_EXTENSIONS:
+        raise ValueError(f"write_rig: cannot write FBX ({os.fspath(path)!r}); stbs reads FBX "
+                         "characters only: write .npz, .glb or .gltf")
     if ext == ".npz":
         save_rig(path, rig)
     elif source is not None and str(source).lower().endswith(GLTF_EXTENSIONS):
