@@ -26,7 +26,7 @@ $(VENV)/.stamp-install: pyproject.toml | $(BIN)/python $(VIEWER_JS) $(THREE_LBS_
 	@touch $@
 
 $(VENV)/.stamp-test: pyproject.toml | $(BIN)/python $(VIEWER_JS) $(THREE_LBS_JS)
-	$(PIP) install -e ".[test,bench,embree,triangle,tetgen,weights,demo,gltf,batch,usd,fbx]"
+	$(PIP) install -e ".[test,bench,embree,triangle,tetgen,weights,demo,batch,usd,fbx]"
 	@touch $@
 
 # npm packages from the committed lock file (viewer/package-lock.json), then the bundle.

@@ -40,7 +40,6 @@ INSTALLS_ON_BOOKWORM = {
     "ruff": "0.13",          # 0.12 and older report UP038 on this code base
     "build": "1",
     "playwright": "1.65",    # with Debian's chromium (apt), never a downloaded browser
-    "pygltflib": "1.16.5",   # pure Python; the earlier 1.16 releases are sdists only
     "dask": "2024.8",        # pure Python
     "distributed": "2024.8",
     "usd-core": "26.11",     # the release tested (its UsdValidation checks the files)

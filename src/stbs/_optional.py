@@ -25,7 +25,6 @@ EXTRAS = {
     "cholespy": ("cholespy", "weights"),
     "igl": ("libigl", "bench"),
     "playwright": ("playwright", "bench"),
-    "pygltflib": ("pygltflib", "gltf"),
     "ufbx": ("ufbx", "fbx"),
     "dask": ("dask", "batch"),
     "distributed": ("distributed", "batch"),

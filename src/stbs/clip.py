@@ -117,7 +117,9 @@ class Clip:
     times : (k,) float
         The key times, increasing (read-only).
     quaternions : (k, b, 4) float
-        Local rotations at the keys, unit quaternions ``(w, x, y, z)`` (2D: about z).
+        Local rotations at the keys, unit quaternions ``(w, x, y, z)`` (2D: about z);
+        a cubic channel's keys are its Hermite control values, normalised after
+        interpolation.
     stretch : (k, b) float
     twist : (k, b, 2) float
         Twist angles at each bone's start and end (radians).
@@ -207,7 +209,9 @@ class Clip:
             Key times in seconds, increasing.
         rotations : (k, b, 4) or (k, b, d, d) float, optional
             Local rotations (see :meth:`stbs.Pose.local`) as unit quaternions
-            ``(w, x, y, z)`` (2D: about z) or matrices; identity by default.
+            ``(w, x, y, z)`` (2D: about z) or matrices; identity by default. The keys of
+            a cubic channel are its Hermite control values, kept as given (non-zero,
+            not necessarily unit: the interpolated value is normalised).
         stretch : (k, b) float, optional
             Stretches, default 1.
         twist : (k, b, 2) float, optional
@@ -246,10 +250,16 @@ class Clip:
             if rot.shape == (k, b, 4):
                 q = _checks.real_array("rotations", rot, shape=(k, b, 4))
                 n = np.linalg.norm(q, axis=-1)
-                if np.any(np.abs(n - 1) > 1e-6):
-                    raise ValueError(f"rotations must be unit quaternions, got norms in "
-                                     f"[{n.min():.6g}, {n.max():.6g}]")
-                q = q / n[..., None]
+                # a cubic channel's keys are Hermite control values, normalised after
+                # interpolation as glTF's CUBICSPLINE does (a key inside a glTF piece
+                # is off the unit sphere); the others must be unit quaternions
+                cubic = _channel_modes("rotation_interpolation", rotation_interpolation,
+                                       b, interpolation) == _MODE["cubic"]
+                unit = np.broadcast_to(~cubic, n.shape)
+                if np.any(np.abs(n[unit] - 1) > 1e-6) or np.any(n <= 1e-12):
+                    raise ValueError(f"rotations must be unit quaternions (non-zero for cubic "
+                                     f"channels), got norms in [{n.min():.6g}, {n.max():.6g}]")
+                q = np.where(unit[..., None], q / n[..., None], q)
             elif rot.shape == (k, b, d, d):
                 q = _to_quats(_checks.real_array("rotations", rot, shape=(k, b, d, d)), d)
             else:
@@ -334,6 +344,26 @@ class Clip:
 
     def __len__(self) -> int:
         return int(self.times.size)
+
+    @property
+    def rotation_interpolation(self) -> list[str]:
+        """Each bone's rotation channel: ``"linear"``, ``"step"`` or ``"cubic"``."""
+        return [CHANNEL_INTERPOLATIONS[m] for m in self._rmode]
+
+    @property
+    def offset_interpolation(self) -> list[str]:
+        """Each bone's offset channel: ``"linear"``, ``"step"`` or ``"cubic"``."""
+        return [CHANNEL_INTERPOLATIONS[m] for m in self._dmode]
+
+    @property
+    def rotation_tangents(self) -> tuple[np.ndarray, np.ndarray] | None:
+        """(in, out) tangents (k, b, 4) of the cubic rotation channels, or None."""
+        return self._rtan
+
+    @property
+    def offset_tangents(self) -> tuple[np.ndarray, np.ndarray] | None:
+        """(in, out) tangents (k, b, d) of the cubic offset channels, or None."""
+        return self._dtan
 
     # ------------------------------------------------------------------ poses
     def local(self, t) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:

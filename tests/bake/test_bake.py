@@ -53,10 +53,10 @@ def test_folder_and_glb_outputs(tmp_path, rig):
     with pytest.raises(ValueError, match="exists and is not empty"):
         bake(rig, clip, folder.path)
     glb = bake(rig, clip, tmp_path / "baked.glb", frames="::2", method="stbs-lbs")
-    f = stbs.io.gltf._File(glb.path)
-    targets = f.g.meshes[0].primitives[0].targets
+    f = stbs.io.gltf.GltfFile(glb.path)
+    targets = f.doc["meshes"][0]["primitives"][0]["targets"]
     assert len(targets) == 6
-    d = f.accessor(targets[5]["POSITION"], "t")
+    d = stbs.io.gltf.read_accessor(f, targets[5]["POSITION"], "t")
     dfm = stbs.Deformer(rig.V, rig.skeleton, rig.W, rig.E, method="stbs-lbs")
     np.testing.assert_allclose(rig.V + d, dfm(clip.pose(1.0)), atol=1e-5)
     with pytest.raises(ValueError, match="expected .npz, .glb, .gltf or a folder"):

@@ -1,5 +1,8 @@
-"""glTF 2.0 in: stbs.io.read_gltf. Our lbs skinning of the imported rig at every keyframe
-equals the glTF skinning formula evaluated directly from what the file holds."""
+"""glTF 2.0 in: stbs.io.read_gltf on files written by hand. Our lbs skinning of the
+imported rig equals the glTF skinning formula, evaluated by an independent reader of the
+file's bytes (gltf_files.Reference), at every key and between keys: LINEAR slerps,
+STEP, CUBICSPLINE pieces split by other channels' keys, translations of child joints,
+a non-joint node between two joints, several meshes and skins over one skeleton."""
 
 from __future__ import annotations
 
@@ -12,15 +15,15 @@ from gltf_files import (
     UBYTE,
     USHORT,
     Builder,
+    Reference,
     local_matrices,
     node_globals,
     quat_xyzw,
-    skin_formula,
     write,
 )
 
 import stbs
-from stbs.io import FormatError, read_gltf
+from stbs.io import FormatError, read_gltf, read_rig
 
 NODES = [
     {"name": "Armature", "scale": [0.5, 0.5, 0.5], "rotation": quat_xyzw([1, 0, 0], 30),
@@ -29,15 +32,18 @@ NODES = [
     {"name": "spine", "translation": [0, 1, 0], "children": [6]},
     {"name": "leg_l", "translation": [0.3, -0.5, 0]},
     {"name": "leg_r", "translation": [-0.3, -0.5, 0]},
-    {"name": "prop", "translation": [2, 0, 0]},                 # a second hierarchy
+    {"name": "prop", "translation": [2, 0, 0]},                 # a second joint tree
     {"name": "chest", "translation": [0, 1, 0], "rotation": quat_xyzw([0, 0, 1], 20),
-     "children": [8, 9, 10]},
+     "children": [8, 11, 10]},
     {"name": "body", "mesh": 0, "skin": 0, "translation": [5, 5, 5]},   # ignored
     {"name": "arm_l", "translation": [0.5, 0.1, 0]},
-    {"name": "neck", "translation": [0, 0.6, 0], "scale": [2, 2, 2]},  # a scaled joint
+    {"name": "neck", "translation": [0, 0.3, 0.1], "scale": [2, 2, 2]},  # a scaled joint
     {"name": "arm_r", "translation": [-0.5, 0.1, 0]},
+    {"name": "socket", "translation": [0, 0.3, 0], "rotation": quat_xyzw([1, 1, 0], 25),
+     "children": [9]},                                              # not a joint
 ]
 JOINTS = [1, 2, 3, 4, 5, 6, 8, 9, 10]
+NAMES = [n["name"] for n in NODES]
 
 
 def _bind_globals():
@@ -48,7 +54,64 @@ def _bind_globals():
     return node_globals(nodes, local_matrices(nodes))
 
 
-def _scene(tmp_path, *, glb=True, name="scene", extra_anims=()):
+def _anim(name, b, channels):
+    """channels: {(node name, path): (times, values, mode)}."""
+    samplers, chans = [], []
+    for (node, path), (times, values, mode) in channels.items():
+        samplers.append({"input": b.add(np.array(times, float)),
+                         "output": b.add(np.array(values, float)), "interpolation": mode})
+        chans.append({"sampler": len(samplers) - 1,
+                      "target": {"node": NAMES.index(node), "path": path}})
+    return {"name": name, "samplers": samplers, "channels": chans}
+
+
+def _cubic(values, rng, scale=0.5):
+    """(in-tangent, value, out-tangent) triples with random tangents."""
+    out = []
+    for v in values:
+        v = np.asarray(v, float)
+        out += [scale * rng.standard_normal(v.size), v, scale * rng.standard_normal(v.size)]
+    return out
+
+
+ANIMS = {
+    # LINEAR, keys from 0.5; the non-joint Armature turns too (folded into the roots:
+    # exact at the keys only); a constant scale
+    "wave": lambda rng: {
+        ("hips", "translation"): ([0.5, 1, 1.5], [[0, 1, 0], [0.3, 1.2, 0], [0.1, 0.9, 0.4]],
+                                  "LINEAR"),
+        ("spine", "rotation"): ([0.5, 1, 1.5], [quat_xyzw([0, 0, 1], a) for a in (0, 40, -30)],
+                                "LINEAR"),
+        ("chest", "rotation"): ([0.5, 1, 1.5], [quat_xyzw([0, 1, 1], a) for a in (20, 90, 170)],
+                                "LINEAR"),
+        ("neck", "scale"): ([0.5, 1, 1.5], [[2, 2, 2]] * 3, "LINEAR"),
+        ("prop", "translation"): ([0.5, 1, 1.5], [[2, 0, 0], [2, 1, 0], [1, 1, 1]], "LINEAR"),
+        ("Armature", "rotation"): ([0.5, 1, 1.5], [quat_xyzw([1, 0, 0], a) for a in (30, 45, 10)],
+                                   "LINEAR")},
+    # CUBICSPLINE channels on different key times: each splits the others' pieces
+    "cubic": lambda rng: {
+        ("spine", "rotation"): ([0, 1, 2], _cubic([quat_xyzw([0, 0, 1], a) for a in (0, 50, -20)],
+                                                  rng), "CUBICSPLINE"),
+        ("hips", "translation"): ([0, 1, 2], _cubic([[0, 1, 0], [1, 1, 0], [0, 2, 0]], rng),
+                                  "CUBICSPLINE"),
+        ("leg_l", "rotation"): ([0.25, 0.7, 1.6],
+                                _cubic([quat_xyzw([1, 0, 0.3], a) for a in (0, -70, 40)], rng),
+                                "CUBICSPLINE"),
+        ("neck", "translation"): ([0.1, 1.3], _cubic([[0, 0.3, 0.1], [0.2, 0.4, 0]], rng),
+                                  "CUBICSPLINE")},
+    # STEP beside LINEAR channels keyed elsewhere; a child joint's translation
+    "step": lambda rng: {
+        ("leg_r", "rotation"): ([0, 0.3], [quat_xyzw([1, 0, 0], a) for a in (0, 80)], "STEP"),
+        ("arm_l", "translation"): ([0, 0.2, 0.45], [[0.5, 0.1, 0], [0.7, 0.3, 0], [0.4, 0, 0.2]],
+                                   "STEP"),
+        ("chest", "rotation"): ([0.1, 0.35], [quat_xyzw([0, 1, 0], a) for a in (0, 120)],
+                                "LINEAR"),
+        ("neck", "rotation"): ([0, 0.25, 0.5], [quat_xyzw([0, 1, 0.2], a) for a in (0, 200, 10)],
+                               "LINEAR")},
+}
+
+
+def _scene(tmp_path, *, glb=True, name="scene", extra_anims=(), edit=None):
     rng = np.random.default_rng(7)
     Gb = _bind_globals()
     IBM = np.array([np.linalg.inv(Gb[j]) for j in JOINTS])
@@ -79,105 +142,88 @@ def _scene(tmp_path, *, glb=True, name="scene", extra_anims=()):
                         "WEIGHTS_0": b.add(Wp1)}, "mode": 5},    # a strip, no indices
     ]
     ibm = b.add(IBM.transpose(0, 2, 1).reshape(len(JOINTS), 16), mat4=True)
-    anims = []
-    # LINEAR, keys starting after 0; the non-joint Armature turns too; head scale constant
-    t = b.add(np.array([0.5, 1.0, 1.5]))
-    ch = {("hips", "translation"): [[0, 1, 0], [0.3, 1.2, 0], [0.1, 0.9, 0.4]],
-          ("spine", "rotation"): [quat_xyzw([0, 0, 1], a) for a in (0, 40, -30)],
-          ("chest", "rotation"): [quat_xyzw([0, 1, 1], a) for a in (20, 90, 170)],
-          ("leg_l", "rotation"): [quat_xyzw([1, 0, 0], a) for a in (0, -60, 30)],
-          ("neck", "scale"): [[2, 2, 2]] * 3,
-          ("prop", "translation"): [[2, 0, 0], [2, 1, 0], [1, 1, 1]],
-          ("Armature", "rotation"): [quat_xyzw([1, 0, 0], a) for a in (30, 45, 10)]}
-    anims.append(_anim("wave", b, t, ch, "LINEAR"))
-    # CUBICSPLINE with tangents
-    t = b.add(np.array([0.0, 1.0, 2.0]))
-    q = [quat_xyzw([0, 0, 1], a) for a in (0, 50, -20)]
-    cub = {("spine", "rotation"): [x for v in q for x in ([0.1, 0, 0, 0], v, [0, 0.2, 0, 0])],
-           ("hips", "translation"): [x for v in ([0, 1, 0], [1, 1, 0], [0, 2, 0])
-                                     for x in ([1, 0, 0], v, [0, 1, 0])]}
-    anims.append(_anim("cubic", b, t, cub, "CUBICSPLINE"))
-    t = b.add(np.array([0.0, 0.3]))
-    anims.append(_anim("step", b, t, {("leg_r", "rotation"): [quat_xyzw([1, 0, 0], a)
-                                                               for a in (0, 80)]}, "STEP"))
+    anims = [_anim(nm, b, make(np.random.default_rng(k))) for k, (nm, make) in
+             enumerate(ANIMS.items())]
     for a in extra_anims:
         anims.append(a(b))
-    doc = {"scene": 0, "scenes": [{"nodes": [0, 7]}], "nodes": NODES,
+    doc = {"scene": 0, "scenes": [{"nodes": [0, 7]}], "nodes": json.loads(json.dumps(NODES)),
            "meshes": [{"name": "body", "primitives": prims}],
            "skins": [{"joints": JOINTS, "inverseBindMatrices": ibm, "name": "rig"}],
            "animations": anims}
+    if edit is not None:
+        edit(doc, b, IBM)
     path = write(tmp_path / f"{name}.{'glb' if glb else 'gltf'}", doc, b, glb=glb)
-    sets = [(np.vstack([J0, Jp1]), np.vstack([qW0 / 255.0, Wp1])),
-            (np.vstack([J1, np.zeros((n1, 4), int)]), np.vstack([qW1 / 65535.0,
-                                                                  np.zeros((n1, 4))]))]
-    return path, {"V": V, "F0": F0, "IBM": IBM, "P": P, "sets": sets, "doc": doc, "ch": ch,
-                  "cub": cub}
+    return path, {"V": V, "F0": F0, "IBM": IBM, "P": P}
 
 
-def _anim(name, b, t, channels, mode):
-    samplers, chans = [], []
-    names = [n["name"] for n in NODES]
-    for (node, path), values in channels.items():
-        samplers.append({"input": t, "output": b.add(np.array(values, float)),
-                         "interpolation": mode})
-        chans.append({"sampler": len(samplers) - 1,
-                      "target": {"node": names.index(node), "path": path}})
-    return {"name": name, "samplers": samplers, "channels": chans}
+def _times(ref, a):
+    T = ref.animation_times(a)
+    return np.concatenate([T, (T[1:] + T[:-1]) / 2, (3 * T[1:] + T[:-1]) / 4,
+                           [T[0] - 0.1, T[-1] + 0.2]])
 
 
-def _reference(ctx, anim_name, k):
-    """The glTF formula at key k of an animation: channel values read as written."""
-    names = [n["name"] for n in NODES]
-    chans = {"wave": ctx["ch"], "cubic": ctx["cub"]}.get(anim_name)
-    over: dict = {}
-    if anim_name == "step":
-        chans = {("leg_r", "rotation"): [quat_xyzw([1, 0, 0], a) for a in (0, 80)]}
-    for (node, path), values in chans.items():
-        v = values[3 * k + 1] if anim_name == "cubic" else values[k]
-        over.setdefault(names.index(node), {})[path] = v
-    G = node_globals(NODES, local_matrices(NODES, over))
-    return skin_formula(ctx["V"], ctx["sets"], G, JOINTS, ctx["IBM"])
+def _err(rig, clip, ref, a, times):
+    dfm = stbs.Deformer(rig.V, rig.skeleton, rig.W, method="lbs")
+    size = np.linalg.norm(np.ptp(ref.V, axis=0))
+    return max(np.abs(dfm(clip.pose(float(t))) - ref.skin_at(a, float(t))).max()
+               for t in times) / size
 
 
 @pytest.mark.parametrize("glb", [True, False])
-def test_every_keyframe_skins_as_the_file_says(tmp_path, glb):
+def test_clips_skin_as_the_file_says_at_and_between_keys(tmp_path, glb):
     path, ctx = _scene(tmp_path, glb=glb)
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         rig, clips = read_gltf(path)
     assert list(clips) == ["wave", "cubic", "step"]
     np.testing.assert_array_equal(rig.V, ctx["V"].astype(np.float32).astype(float))
-    diag = np.linalg.norm(np.ptp(rig.V, axis=0))
-    for name, times in (("wave", [0.5, 1.0, 1.5]), ("cubic", [0, 1, 2]), ("step", [0, 0.3])):
+    ref = Reference(path)
+    for a, name in enumerate(clips):
         clip = clips[name]
-        np.testing.assert_allclose(clip.times, times, atol=1e-7)
-        for k, (_, pose) in enumerate(clip.keys):
-            U = stbs.deform(rig.V, rig.skeleton, pose, rig.W, method="lbs")
-            ref = _reference(ctx, name, k)
-            assert np.abs(U - ref).max() <= 1e-5 * diag, (name, k, np.abs(U - ref).max())
-        # before the first key (the wave starts at 0.5) the clip holds the first pose
-        assert clip.pose(0.0).origins.tolist() == clip.keys[0][1].origins.tolist()
+        T = ref.animation_times(a)
+        np.testing.assert_allclose(clip.times, T, atol=1e-7)
+        # at the keys: every animation, the non-joint Armature's turn included
+        assert _err(rig, clip, ref, a, T) <= 1e-5, name
+        if name != "wave":           # between keys: exact where no non-joint node moves
+            assert _err(rig, clip, ref, a, _times(ref, a)) <= 1e-5, name
+    assert clips["cubic"].rotation_interpolation[rig.skeleton.names.index("leg_l")] == "cubic"
+    assert clips["step"].offset_interpolation[rig.skeleton.names.index("arm_l")] == "step"
+    # the wave between its keys: the Armature's turn folded into the roots, linearly
+    assert _err(rig, clips["wave"], ref, 0, _times(ref, 0)) < 0.05
+
+
+def test_a_cubic_piece_split_by_other_keys_is_the_same_curve(tmp_path):
+    # the cubic leg turn keyed at 0.25, 0.7, 1.6 is re-keyed at 0, 0.1, 1, 1.3, 2 too:
+    # its keys there are Hermite values off the unit sphere, the curve unchanged
+    path, _ = _scene(tmp_path)
+    rig, clips = read_gltf(path)
+    clip = clips["cubic"]
+    i = rig.skeleton.names.index("leg_l")
+    norms = np.linalg.norm(clip.quaternions[:, i], axis=-1)
+    assert np.abs(norms - 1).max() > 1e-3
+    ref = Reference(path)
+    fine = np.linspace(-0.1, 2.1, 89)
+    assert _err(rig, clip, ref, 1, fine) <= 1e-5
 
 
 def test_the_rig_structure(tmp_path):
     path, ctx = _scene(tmp_path)
     rig, _ = read_gltf(path)
     sk = rig.skeleton
-    assert sk.names == ["hips", "spine", "leg_l", "leg_r", "prop", "chest", "arm_l", "neck",
-                        "arm_r"]
-    # joints at the bind positions of the inverse bind matrices (not the node rest pose,
-    # whose chest is turned by 20 degrees)
+    assert sk.names == [NAMES[j] for j in JOINTS]
+    # one bone per joint, starting at the bind positions of the inverse bind matrices
+    # (not the node rest pose, whose chest is turned by 20 degrees)
+    np.testing.assert_array_equal(sk.BE[:, 0], np.arange(len(JOINTS)))
     np.testing.assert_allclose(sk.C[:9], ctx["P"], atol=1e-6)
+    # parents: the nearest joint above, across the non-joint socket (neck -> chest)
     j = {n: i for i, n in enumerate(sk.names)}
-    # hips (a root joint with three children): the first child, spine
-    assert sk.BE[j["hips"], 1] == j["spine"]
-    # chest: the child that continues spine -> chest best, the neck (listed second)
-    assert sk.BE[j["chest"], 1] == j["neck"]
-    # a leaf: half its parent bone further on
-    spine_to_chest = ctx["P"][5] - ctx["P"][1]
-    np.testing.assert_allclose(sk.C[sk.BE[j["arm_l"], 1]] - ctx["P"][6],
-                               0.5 * (ctx["P"][6] - ctx["P"][5]), atol=1e-6)
-    assert np.linalg.norm(spine_to_chest) > 0
+    want = {"hips": None, "spine": "hips", "leg_l": "hips", "leg_r": "hips", "prop": None,
+            "chest": "spine", "arm_l": "chest", "neck": "chest", "arm_r": "chest"}
+    assert {n: (sk.names[p] if p >= 0 else None) for n, p in zip(sk.names, sk.parents,
+                                                                  strict=True)} == want
+    # the chest continues to the neck (connected); the arms hang off it where they are
+    assert sk.BE[j["chest"], 1] == j["neck"] and sk.connected[j["neck"]]
+    assert not sk.connected[j["arm_l"]] and not sk.connected[j["arm_r"]]
     # primitives concatenated: the strip's triangles come after the indexed ones
     n0 = 40
     np.testing.assert_array_equal(rig.F[:len(ctx["F0"])], ctx["F0"])
@@ -185,53 +231,149 @@ def test_the_rig_structure(tmp_path):
     assert strip.min() == n0 and len(strip) == len(rig.V) - n0 - 2
     np.testing.assert_array_equal(strip[1], [n0 + 1, n0 + 3, n0 + 2])   # winding alternates
     np.testing.assert_allclose(rig.W.sum(axis=1), 1)
-    assert rig.meta["gltf"]["joints"] == JOINTS and rig.meta["gltf"]["node"] == 7
+    g = rig.meta["gltf"]
+    assert g["joints"] == JOINTS and g["skins"] == [0]
+    assert [(p["node"], p["mesh"], p["primitive"], p["start"], p["count"])
+            for p in g["primitives"]] == [(7, 0, 0, 0, 40), (7, 0, 1, 40, len(rig.V) - 40)]
 
 
-def test_an_animated_non_uniform_scale_is_dropped_with_a_warning(tmp_path):
+def test_turning_a_branching_joint_by_hand(tmp_path):
+    # the chest (three children, one across the socket) turned 40 degrees in its own
+    # frame: FK with the equivalent local rotation, in the bind-aligned frame
+    path, _ = _scene(tmp_path)
+    rig, _ = read_gltf(path)
+    ref = Reference(path)
+    B = ref.bind_world()
+    sk = rig.skeleton
+    for node in (1, 6):                     # hips and chest
+        axis = np.array([1.0, 2, 3]) / np.sqrt(14)
+        D = stbs.transforms.axis_angle_to_matrix(axis, np.radians(40))
+        Rb = B[node][:3, :3] / np.cbrt(np.linalg.det(B[node][:3, :3]))
+        R = np.tile(np.eye(3), (sk.n_bones, 1, 1))
+        R[JOINTS.index(node)] = Rb @ D @ Rb.T
+        U = stbs.deform(rig.V, sk, stbs.forward_kinematics(sk, rotations=R), rig.W,
+                        method="lbs")
+        want = ref.skin_bind(turn=(node, D))
+        assert np.abs(U - want).max() <= 1e-5 * np.linalg.norm(np.ptp(want, axis=0))
+        assert np.abs(U - rig.V).max() > 0.05
+
+
+def test_an_animated_scale_is_dropped_with_a_warning_naming_the_joint(tmp_path):
     def squash(b):
-        t = b.add(np.array([0.0, 1.0]))
-        return _anim("squash", b, t, {("spine", "scale"): [[1, 1, 1], [1, 2, 1]]}, "LINEAR")
+        return _anim("squash", b, {("spine", "scale"): ([0, 1], [[1, 1, 1], [1, 2, 1]],
+                                                        "LINEAR")})
 
     path, _ = _scene(tmp_path, extra_anims=[squash])
-    with pytest.warns(UserWarning, match="animation 3 scales joints .* the scale is dropped"):
-        _, clips = read_gltf(path)
-    assert "squash" in clips
+    rig, clips = read_gltf(path)
+    with pytest.warns(UserWarning, match="changes the scale of joint 'spine'.*dropped"):
+        clip = clips["squash"]
+    # its children still move as in the file: the chest's start follows the scale
+    ref = Reference(path)
+    a = list(clips).index("squash")
+    U = clip.pose(1.0).origins[rig.skeleton.names.index("chest")]
+    G = node_globals(ref.nodes, ref.locals_at(a, 1.0))
+    np.testing.assert_allclose(U, G[6][:3, 3], atol=1e-9)
+
+
+def test_meshes_sharing_a_skin_and_a_second_skin_over_the_same_joints(tmp_path):
+    # three skinned nodes: the body twice (once through a second skin whose binds move
+    # the mesh: each of its vertices is placed where the file's rest pose puts it)
+    X = np.eye(4)
+    X[:3, :3] = stbs.transforms.axis_angle_to_matrix(np.array([0, 1.0, 0]), 0.7)
+    X[:3, 3] = [0.5, -0.2, 0.1]
+
+    def more(doc, b, IBM):
+        doc["nodes"] += [{"name": "body2", "mesh": 0, "skin": 0},
+                         {"name": "body3", "mesh": 0, "skin": 1}]
+        doc["scenes"][0]["nodes"] += [12, 13]
+        doc["skins"].append({"joints": JOINTS, "inverseBindMatrices": b.add(
+            (IBM @ X).transpose(0, 2, 1).reshape(len(JOINTS), 16), mat4=True)})
+
+    path, ctx = _scene(tmp_path, edit=more)
+    rig, clips = read_gltf(path)
+    n = len(ctx["V"])
+    assert rig.V.shape == (3 * n, 3) and rig.skeleton.n_bones == len(JOINTS)
+    assert [p["node"] for p in rig.meta["gltf"]["primitives"]] == [7, 7, 12, 12, 13, 13]
+    assert rig.meta["gltf"]["skins"] == [0, 1]
+    ref = Reference(path)
+    for a in (1, 2):
+        assert _err(rig, clips[list(clips)[a]], ref, a, _times(ref, a)) <= 1e-5
+    # mesh= and skin= pick
+    assert len(read_gltf(path, mesh="body2")[0].V) == n
+    assert len(read_gltf(path, skin=1)[0].V) == n
+
+
+def test_two_skeletons_read_the_first_with_a_warning(tmp_path):
+    def second(doc, b, IBM):
+        doc["nodes"] += [{"name": "other_root", "translation": [9, 0, 0], "children": [13]},
+                         {"name": "other_tip", "translation": [0, 1, 0]},
+                         {"name": "other", "mesh": 1, "skin": 1}]
+        doc["scenes"][0]["nodes"] += [12, 14]
+        V = np.array([[9, 0, 0], [9.1, 1, 0], [8.9, 0.5, 0.1]], float)
+        doc["meshes"].append({"name": "other", "primitives": [{"attributes": {
+            "POSITION": b.add(V), "JOINTS_0": b.add(np.array([[0, 1, 0, 0]] * 3), UBYTE),
+            "WEIGHTS_0": b.add(np.array([[0.5, 0.5, 0, 0]] * 3))}}]})
+        doc["skins"].append({"joints": [12, 13], "name": "other_skin"})
+
+    path, ctx = _scene(tmp_path, edit=second)
+    with pytest.warns(UserWarning, match="2 skeletons; reading the one of node 7"):
+        rig, _ = read_gltf(path)
+    assert rig.skeleton.n_bones == len(JOINTS)
+    other, _ = read_gltf(path, skin="other_skin")
+    assert other.skeleton.names == ["other_root", "other_tip"] and len(other.V) == 3
+    assert read_gltf(path, mesh="other")[0].skeleton.names == ["other_root", "other_tip"]
+    with pytest.raises(ValueError, match="no skinned mesh matches mesh='x'"):
+        read_gltf(path, mesh="x")
+
+
+def test_unnamed_and_shared_joint_names(tmp_path):
+    def names(doc, b, IBM):
+        doc["nodes"][2].pop("name")                     # spine: unnamed
+        doc["nodes"][3]["name"] = doc["nodes"][4]["name"] = "leg"
+
+    path, _ = _scene(tmp_path, edit=names)
+    sk = read_gltf(path)[0].skeleton
+    assert sk.names[:4] == ["hips", "node2", "node3", "node4"]
+
+
+def test_animations_are_decoded_only_when_asked(tmp_path):
+    def broken(doc, b, IBM):
+        doc["animations"][1]["samplers"][0]["output"] = 10_000       # out of range
+
+    path, _ = _scene(tmp_path, edit=broken)
+    rig = read_rig(path)                           # never looks at the animations
+    rig2, clips = read_gltf(path)
+    assert list(clips) == ["wave", "cubic", "step"] and len(clips) == 3
+    assert clips["wave"].times.size == 3
+    with pytest.raises(FormatError, match="an index into accessors"):
+        clips["cubic"]
+    assert rig.V.shape == rig2.V.shape
 
 
 def test_the_shared_files(shared_data):
     for name, n, b in (("RiggedSimple.glb", 160, 2), ("SimpleSkin.gltf", 10, 2)):
         rig, clips = read_gltf(shared_data / "gltf" / name)
         assert rig.V.shape == (n, 3) and rig.skeleton.n_bones == b and len(clips) == 1
-        clip = next(iter(clips.values()))
-        diag = np.linalg.norm(np.ptp(rig.V, axis=0))
-        moved = 0.0
-        for _, pose in clip.keys:
-            U = stbs.deform(rig.V, rig.skeleton, pose, rig.W, method="lbs")
-            assert np.isfinite(U).all() and np.ptp(U, axis=0).max() < 10 * diag
-            moved = max(moved, np.abs(U - rig.V).max())
-        assert moved > 0.05 * diag
 
 
 def test_simple_skin_against_its_own_numbers(shared_data):
-    # SimpleSkin (Khronos): joint 1 turns about z by the key's quaternion; vertices
-    # with weight on it turn about (0, 1, 0). At the key of 90 degrees... the file's
+    # SimpleSkin (Khronos): joint 1 turns about z by the key's quaternion; the file's
     # output at key 2 is (0, 0, 0.707, 0.707): a quarter turn.
     rig, clips = read_gltf(shared_data / "gltf" / "SimpleSkin.gltf")
     clip = clips["animation_0"]
     doc = json.loads((shared_data / "gltf" / "SimpleSkin.gltf").read_text())
-    assert len(clip.keys) == doc["accessors"][5]["count"]
+    assert len(clip.times) == doc["accessors"][5]["count"]
     R = clip.keys[2][1].rotations[1]
     np.testing.assert_allclose(R, [[0, -1, 0], [1, 0, 0], [0, 0, 1]], atol=1e-3)
 
 
 @pytest.mark.parametrize("damage, match", [
-    (lambda d, p: p.write_bytes(p.read_bytes()[:200]), "glTF"),
-    (lambda d, p: p.write_bytes(b"not a gltf at all"), "glTF"),
+    (lambda p: p.write_bytes(p.read_bytes()[:200]), "GLB"),
+    (lambda p: p.write_bytes(b"not a gltf at all"), "glTF"),
 ])
 def test_broken_files(tmp_path, damage, match):
     path, _ = _scene(tmp_path)
-    damage(None, path)
+    damage(path)
     with pytest.raises(FormatError, match=match):
         read_gltf(path)
 
@@ -247,95 +389,25 @@ def _edit(tmp_path, fn):
 @pytest.mark.parametrize("fn, match", [
     (lambda d: d.pop("skins"), "expected a skin"),
     (lambda d: d["nodes"][7].pop("skin"), "a node with both a mesh and a skin"),
-    (lambda d: d["accessors"][0].update(count=10_000), r"out of range"),
+    (lambda d: d["accessors"][0].update(count=10_000), r"inside its buffer view"),
     (lambda d: d["meshes"][0]["primitives"][0]["attributes"].update(POSITION=999),
-     r"an accessor index in 0\.\."),
-    (lambda d: d["meshes"][0]["primitives"][1].update(mode=1), "points or lines"),
+     r"an index into accessors"),
+    (lambda d: d["meshes"][0].update(primitives=[dict(d["meshes"][0]["primitives"][0],
+                                                      mode=1)]), "points and lines only"),
     (lambda d: d["skins"][0].update(joints=[1, 2, 99]), "joint node indices"),
+    (lambda d: d["skins"][0].update(joints=[1, 2, 2]), "distinct joint nodes"),
+    (lambda d: (d["nodes"][1].update(children=[2]), d["nodes"][3].update(children=[4]),
+                d["nodes"][4].update(children=[3])), "a cycle through nodes"),
+    (lambda d: d["nodes"][3].update(children=[6]), "node 6 a child of nodes 2 and 3"),
+    (lambda d: d["asset"].update(version="1.0"), "asset.version"),
 ])
+@pytest.mark.filterwarnings("ignore:.*points or lines")
 def test_bad_content_is_one_clear_error(tmp_path, fn, match):
-    with pytest.raises((FormatError, ValueError), match=match):
+    with pytest.raises((FormatError, ValueError), match=match) as info:
         read_gltf(_edit(tmp_path, fn))
-
-
-def test_several_skinned_meshes_are_listed(tmp_path):
-    def two(d):
-        d["nodes"].append({"name": "body2", "mesh": 0, "skin": 0})
-        d["scenes"][0]["nodes"].append(len(d["nodes"]) - 1)
-
-    path = _edit(tmp_path, two)
-    with pytest.warns(UserWarning, match="2 skinned meshes, reading the first"):
-        read_gltf(path)
-    rig, _ = read_gltf(path, mesh="body2")
-    assert rig.meta["gltf"]["node"] == 11
-    with pytest.raises(ValueError, match="no skinned mesh matches mesh='x'"):
-        read_gltf(path, mesh="x")
+    assert "\n" not in str(info.value)
 
 
 def test_a_missing_file(tmp_path):
     with pytest.raises(FileNotFoundError):
         read_gltf(tmp_path / "none.glb")
-
-
-# ---------------------------------------------------------------- the shared files
-def _raw_gltf(path):
-    """(JSON, buffers) of a .glb or a .gltf with data: URIs, read without stbs."""
-    import base64
-    import struct
-
-    data = path.read_bytes()
-    if path.suffix == ".glb":
-        n = struct.unpack_from("<I", data, 12)[0]
-        doc = json.loads(data[20:20 + n])
-        m = struct.unpack_from("<I", data, 20 + n)[0]
-        return doc, [data[28 + n:28 + n + m]]
-    doc = json.loads(data)
-    return doc, [base64.b64decode(b["uri"].split(",", 1)[1]) for b in doc["buffers"]]
-
-
-def _raw_accessor(doc, bufs, i):
-    a = doc["accessors"][i]
-    bv = doc["bufferViews"][a["bufferView"]]
-    dt = {5126: "<f4", 5123: "<u2", 5121: "u1"}[a["componentType"]]
-    nc = {"SCALAR": 1, "VEC3": 3, "VEC4": 4, "MAT4": 16}[a["type"]]
-    item = np.dtype(dt).itemsize
-    stride = bv.get("byteStride", nc * item)
-    start = bv.get("byteOffset", 0) + a.get("byteOffset", 0)
-    rows = [np.frombuffer(bufs[bv["buffer"]], dtype=dt, count=nc, offset=start + k * stride)
-            for k in range(a["count"])]
-    x = np.array(rows, dtype=float)
-    if a.get("normalized"):
-        x /= {"<u2": 65535.0, "u1": 255.0}[dt]
-    return x
-
-
-@pytest.mark.parametrize("name", ["RiggedSimple.glb", "SimpleSkin.gltf"])
-def test_the_shared_files_skin_as_the_formula_says(shared_data, name):
-    path = shared_data / "gltf" / name
-    doc, bufs = _raw_gltf(path)
-    nodes = doc["nodes"]
-    node = next(k for k, n in enumerate(nodes) if "skin" in n)
-    skin = doc["skins"][nodes[node]["skin"]]
-    prim = doc["meshes"][nodes[node]["mesh"]]["primitives"][0]
-    V = _raw_accessor(doc, bufs, prim["attributes"]["POSITION"])
-    J = _raw_accessor(doc, bufs, prim["attributes"]["JOINTS_0"]).astype(int)
-    Wt = _raw_accessor(doc, bufs, prim["attributes"]["WEIGHTS_0"])
-    IBM = _raw_accessor(doc, bufs, skin["inverseBindMatrices"]).reshape(-1, 4, 4)
-    IBM = IBM.transpose(0, 2, 1)
-    anim = doc["animations"][0]
-    rig, clips = read_gltf(path)
-    clip = next(iter(clips.values()))
-    diag = float(np.linalg.norm(np.ptp(V, axis=0)))
-    for k, (t, pose) in enumerate(clip.keys):
-        over: dict = {}
-        for ch in anim["channels"]:
-            s = anim["samplers"][ch["sampler"]]
-            times = _raw_accessor(doc, bufs, s["input"])[:, 0]
-            assert abs(times[k] - t) < 1e-6            # every channel keyed at the same times
-            over.setdefault(ch["target"]["node"], {})[ch["target"]["path"]] = \
-                _raw_accessor(doc, bufs, s["output"])[k]
-        G = node_globals(nodes, local_matrices(nodes, over))
-        ref = skin_formula(V, [(J, Wt)], G, skin["joints"], IBM)
-        U = stbs.deform(rig.V, rig.skeleton, pose, rig.W, method="lbs")
-        assert np.abs(U - ref).max() <= 1e-5 * diag, (k, np.abs(U - ref).max())
-    assert len(clip.keys) == doc["accessors"][anim["samplers"][0]["input"]]["count"]

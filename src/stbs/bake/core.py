@@ -51,7 +51,7 @@ def load_motion(path: str | os.PathLike, rig: Rig, *, mapping=None, twist: str =
         return read_clip(p, rig.skeleton)
     if ext == ".bvh":
         return retarget(read_bvh(p), rig, mapping=mapping, twist=twist, stretch=stretch)
-    _, clips = read_fbx(p) if ext == ".fbx" else read_gltf(p)
+    _, clips = read_fbx(p) if ext == ".fbx" else read_gltf(p, **_gltf_selection(rig, p))
     if not clips:
         raise ValueError(f"motion {str(p)!r}: the file has no animation")
     if animation is None:
@@ -68,6 +68,15 @@ def load_motion(path: str | os.PathLike, rig: Rig, *, mapping=None, twist: str =
                          f"rig's ({rig.skeleton!r}); bake a glTF or FBX character with its "
                          f"own animations, or give a .bvh or a clip .json")
     return clip
+
+
+def _gltf_selection(rig: Rig, p: Path) -> dict:
+    """The skin=/mesh= the rig was read with, when the motion is the rig's own file."""
+    info = (rig.meta or {}).get("gltf")
+    if not isinstance(info, dict) or info.get("file") != p.name:
+        return {}
+    sel = info.get("select") or {}
+    return {k: v for k, v in sel.items() if k in ("skin", "mesh") and v is not None}
 
 
 def _moves(clip: Clip) -> bool:

@@ -6,6 +6,8 @@ from __future__ import annotations
 import argparse
 import sys
 
+from ._character import add_character_options
+
 NAME = "animate"
 HELP = "bake a motion (BVH, glTF, FBX, clip JSON) on a rig into frames (.npz, .glb, meshes)"
 EXAMPLE = "stbs animate arm.npz --motion wave.json -o arm-wave.glb"
@@ -63,6 +65,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     g.add_argument("--scheduler", metavar="ADDRESS", help="an existing Dask cluster")
     g.add_argument("--chunk", type=int, default=64, metavar="FRAMES",
                    help="frames per task (default: %(default)s)")
+    add_character_options(p)
 
 
 def requires(args: argparse.Namespace) -> list[str]:
@@ -72,8 +75,6 @@ def requires(args: argparse.Namespace) -> list[str]:
         if args.workers or args.scheduler:
             need.append("distributed")
     for path in (args.rig, args.motion):
-        if path and path.lower().endswith((".gltf", ".glb")):
-            need.append("pygltflib")
         if path and path.lower().endswith(".fbx"):
             need.append("ufbx")
     return need
@@ -124,9 +125,10 @@ def run(args: argparse.Namespace) -> int:
         raise CommandError("--workers and --scheduler apply to --manifest")
     from ..bake import bake, load_motion, output_kind
     from ..io import read_rig
+    from ._character import character_options
 
     output_kind(args.output)
-    rig = read_rig(args.rig)
+    rig = read_rig(args.rig, **character_options(args))
     clip = load_motion(args.motion, rig, mapping=args.mapping, twist=args.twist,
                        stretch=args.stretch, animation=args.animation)
     done = bake(rig, clip, args.output, method=args.method, fps=args.fps, frames=args.frames,

@@ -9,6 +9,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from ._character import add_character_options, character_options
 from ._errors import CommandError
 
 NAME = "deform"
@@ -65,22 +66,21 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("-o", "--output", required=True, metavar="OUT",
                    help=f"output file: {' '.join(OUTPUT_EXTENSIONS)}")
     g = p.add_argument_group("rig from separate files (instead of RIG.npz)")
-    g.add_argument("--mesh", metavar="MESH", help="rest mesh: .obj .off .ply .stl .mesh .msh .vtk")
+    g.add_argument("--mesh", metavar="MESH",
+                   help="rest mesh: .obj .off .ply .stl .mesh .msh .vtk (with a character RIG "
+                        "alone: the skinned mesh whose skeleton to read, index or name)")
     g.add_argument("--skeleton", metavar="SKEL", help="skeleton: .tgf .bf")
     g.add_argument("--weights", metavar="W", help="bone weights (n, b): .dmat .npy .npz .csv")
     p.add_argument("--endpoint", metavar="E",
                    help="endpoint weights (n, b) in [0, 1]: .dmat .npy .npz .csv")
     p.add_argument("--size", type=int, default=PNG_SIZE, metavar="PX",
                    help="-o .png: pixels of the picture's longer side (default: %(default)s)")
+    add_character_options(p, mesh=False)
 
 
 def requires(args: argparse.Namespace) -> list[str]:
-    """Optional modules this run needs: matplotlib and Pillow for a .png picture,
-    pygltflib for a glTF rig."""
-    need = ["matplotlib", "PIL"] if str(args.output).lower().endswith(".png") else []
-    if args.rig and args.rig.lower().endswith((".gltf", ".glb")):
-        need.append("pygltflib")
-    return need
+    """Optional modules this run needs: matplotlib and Pillow for a .png picture."""
+    return ["matplotlib", "PIL"] if str(args.output).lower().endswith(".png") else []
 
 
 @dataclass
@@ -121,11 +121,14 @@ def _load(args) -> _Rig:
 
     files = {"--mesh": args.mesh, "--skeleton": args.skeleton, "--weights": args.weights}
     if args.rig is not None:
-        given = [k for k, v in files.items() if v is not None]
+        # with a rig alone, --mesh picks a character's skinned mesh
+        pick = args.mesh if args.skeleton is None and args.weights is None else None
+        given = [k for k, v in files.items() if v is not None and k != "--mesh" or
+                 k == "--mesh" and v is not None and pick is None]
         if given:
             raise CommandError(f"give either a rig file or --mesh, --skeleton and --weights, "
                               f"not both (got {args.rig!r} and {', '.join(given)})")
-        rig = read_rig(args.rig)
+        rig = read_rig(args.rig, **character_options(args, mesh=pick))
         r = _Rig(rig.V, rig.F, rig.T, rig.skeleton, rig.W, rig.E, f"{args.rig} (W)",
                  None if rig.E is None else f"{args.rig} (E)", [Path(args.rig)],
                  texture=rig.texture, UV=rig.UV)

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import argparse
 
+from ._character import add_character_options
+
 NAME = "export"
 HELP = "write a rig (and a clip) as glTF 2.0 (.glb, .gltf) or OpenUSD (.usda, .usdc)"
 EXAMPLE = "stbs export arm.npz -o arm.glb"
@@ -37,13 +39,14 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help=f"bake the clip with this method ({', '.join(METHODS)})")
     p.add_argument("--skinning", choices=("lbs", "dqs"), default="lbs",
                    help="OpenUSD: the skinning method the file asks for (default: lbs)")
+    add_character_options(p)
 
 
 USD = (".usda", ".usdc", ".usd")
 
 
 def requires(args: argparse.Namespace) -> list[str]:
-    need = ["pygltflib"] if args.rig.lower().endswith((".gltf", ".glb")) else []
+    need = []
     if args.output.lower().endswith(USD):
         need.append("pxr")
     return need
@@ -51,6 +54,7 @@ def requires(args: argparse.Namespace) -> list[str]:
 
 def run(args: argparse.Namespace) -> int:
     from ..io import read_clip, read_rig, write_gltf, write_usd
+    from ._character import character_options
     from ._errors import CommandError
 
     usd = args.output.lower().endswith(USD)
@@ -61,7 +65,7 @@ def run(args: argparse.Namespace) -> int:
         raise CommandError("--skinning applies to OpenUSD output (glTF skins linearly)")
     if args.bake and not args.clip:
         raise CommandError("--bake needs --clip: the animation to bake")
-    rig = read_rig(args.rig)
+    rig = read_rig(args.rig, **character_options(args))
     clip = read_clip(args.clip, rig.skeleton) if args.clip else None
     if usd:
         write_usd(args.output, rig, clip, bake=args.bake, skinning=args.skinning)

@@ -100,12 +100,8 @@ def requires(args: argparse.Namespace) -> list[str]:
     from .rig import IMAGE_EXTENSIONS
 
     need = []
-    if args.motion is not None and args.motion.lower().endswith((".gltf", ".glb")):
-        need.append("pygltflib")
     if args.skeleton is not None and args.input is not None:
         return need + (["PIL"] if args.input.lower().endswith(IMAGE_EXTENSIONS) else [])
-    if args.input is not None and args.input.lower().endswith((".gltf", ".glb")):
-        need.append("pygltflib")
     return sorted(set(need))
 
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import sys
 
+from ._character import add_character_options
 from .rig import BONE, ENDPOINT, add_clip_argument, add_tol_argument
 
 NAME = "weights"
@@ -36,23 +37,20 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="3D bbw: tetrahedralize the surface (auto) or read tets from FILE")
     add_clip_argument(p)
     add_tol_argument(p)
-
-
-def requires(args: argparse.Namespace) -> list[str]:
-    """Optional modules this run needs: pygltflib for a glTF input."""
-    return ["pygltflib"] if args.rig.lower().endswith((".gltf", ".glb")) else []
+    add_character_options(p)
 
 
 def run(args: argparse.Namespace) -> int:
     from ..io import read_rig, write_rig
     from ..rig import build_rig
+    from ._character import character_options
     from ._errors import CommandError
     from .rig import _Stages, build, check_output, resolve_tol
 
     out = check_output(args.output, gltf=True)
     tol = resolve_tol(args.tol, args.bone, args.endpoint)
     st = _Stages()
-    rig = st.run("read rig", read_rig, args.rig)
+    rig = st.run("read rig", read_rig, args.rig, **character_options(args))
     sk = rig.skeleton
     if args.bone == "keep":
         if args.clip_skeleton:

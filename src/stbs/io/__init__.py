@@ -43,8 +43,7 @@ from .clip import clip_to_dict, read_clip, write_clip
 from .dmat import read_dmat, write_dmat
 from .errors import FormatError
 from .fbx import FBX_EXTENSIONS, read_fbx
-from .gltf import GLTF_EXTENSIONS, read_gltf
-from .gltf_write import write_gltf
+from .gltf import GLTF_EXTENSIONS, read_gltf, write_gltf
 from .mesh import MESH_READ_EXTENSIONS, MESH_WRITE_EXTENSIONS, Mesh, read_mesh, write_mesh
 from .poly import read_polygons
 from .pose import pose_to_dict, read_pose, write_pose

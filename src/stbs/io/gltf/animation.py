@@ -1,0 +1,419 @@
+"""glTF animations as clips that equal the file's node hierarchy at any time.
+
+A glTF animation keys each node's translation ``t``, rotation ``r`` and scale ``s``
+(LINEAR, STEP or CUBICSPLINE); a node's local matrix is ``N = T(t) R(r) S(s)`` and the
+skin of joint ``j`` at time ``τ`` is ``M_j = G_j(τ) IBM_j``. The clip's bone ``i``
+(joint ``i``, bind ``B_i = IBM_i^-1``) takes the rigid part of ``M_i``: rotation
+``R_i = rot(G_i) rot(B_i)^T``, posed start ``a'_i = trans(G_i)``. In the clip's local
+frame (:meth:`stbs.Pose.local`, no stretch or twist) that is, for a child ``i`` of
+bone ``p`` with the nodes ``C = N_m1 ... N_mk N_i`` between them,
+
+- ``L_i = R_p^T R_i = rot(IBM_p)^T rot(N_m1 ... N_x-1) r_x(τ) rot(S_x ... N_i IBM_i)``:
+  a constant left and right product around the one animated rotation ``r_x`` in ``C``
+  (the joint's own, usually), so slerp, STEP and the cubic Hermite of ``r_x`` map
+  exactly onto the bone's rotation channel (the tangents by the same products);
+- ``D_i = K_p trans(C) - (a_i - a_p)`` with the constant ``K_p = R_p^T lin(G_p)``
+  (the parent's world scale in the bind frame): affine in the one animated
+  translation in ``C``, so LINEAR, STEP and CUBICSPLINE carry over as they are.
+
+A root bone is the same with ``C`` running from the top of its node tree, so the
+motion of non-joint ancestors (an ``Armature`` node) is folded into the roots.
+
+Every channel of the animation that moves the skeleton is put on the union of their
+key times, each bone keeping its channel's interpolation: a linear channel re-keyed
+at extra times is still exact, a STEP one too, and a Hermite piece split at an inner
+time is exact with the derivative there as both tangents (and its value there, off
+the unit sphere: the clip normalises after interpolating, as glTF does).
+
+Where that structure does not hold -- two animated rotations (or translations) in one
+bone's chain, an animated scale above it, a non-uniform scale that shears -- the bone
+takes the exact skinning-matrix values at the union times and slerps (lerps) between
+them: exact at every key time of the animation, an approximation between keys. Each
+analytic channel is checked against those exact values at the union times before it
+is used. A joint whose scale changes over time cannot be a rigid bone: its own
+scaling is dropped with a warning naming it (its children still move as in the
+file); constant scales are part of the bind.
+"""
+
+from __future__ import annotations
+
+import warnings
+from dataclasses import dataclass
+
+import numpy as np
+
+from ... import transforms as tf
+from ...clip import Clip
+from ...pose import local_arrays
+from ...skeleton import Skeleton
+from .accessors import read_accessor
+from .container import GltfFile
+from .scene import Scene, polar, trs_matrices
+
+__all__ = ["Channel", "Joints", "decode_clip", "animation_names"]
+
+_PATHS = ("translation", "rotation", "scale")
+_MODES = {"LINEAR": "linear", "STEP": "step", "CUBICSPLINE": "cubic"}
+#: Scale changing by more than this (relative) over an animation is warned about.
+SCALE_TOL = 1e-4
+#: An analytic channel must match the skinning matrices to this (rotation entries;
+#: offsets: times the skeleton's size) at every union time.
+CHECK_TOL = 1e-6
+
+
+@dataclass
+class Joints:
+    """What the clips need of the rig read: its joints and their binds.
+
+    Attributes
+    ----------
+    nodes : list of int
+        The joint node of each bone.
+    ibm : (b, 4, 4) float
+        Inverse bind matrices.
+    skeleton : Skeleton
+        Bone ``i`` starts at joint ``i``'s bind position; parent bones are parent joints.
+    """
+
+    nodes: list[int]
+    ibm: np.ndarray
+    skeleton: Skeleton
+
+
+def animation_names(f: GltfFile) -> list[str]:
+    """The animations' names in file order: their own, else ``animation_K``; a repeated
+    name gets ``_K`` appended."""
+    out: list[str] = []
+    for a, anim in enumerate(f.items("animations")):
+        nm = anim.get("name") if isinstance(anim, dict) else None
+        name = nm if isinstance(nm, str) and nm else f"animation_{a}"
+        while name in out:
+            name = f"{name}_{a}"
+        out.append(name)
+    return out
+
+
+def _qmul(p, q):
+    return tf.quat_mul(p, q)
+
+
+class Channel:
+    """One sampler driving one node's translation, rotation or scale.
+
+    Rotations are held as ``(w, x, y, z)``; LINEAR and STEP keys normalised (files
+    round them), CUBICSPLINE values and tangents as written.
+    """
+
+    def __init__(self, f: GltfFile, a: int, s: int, sampler: dict, path: str):
+        what = f"animation {a} sampler {s}"
+        self.path = path
+        mode = f.get(sampler, "interpolation", "string", f"animations[{a}].samplers[{s}]",
+                     "LINEAR")
+        if mode not in _MODES:
+            raise f.error(f"{what}: interpolation LINEAR, STEP or CUBICSPLINE", repr(mode))
+        self.mode = _MODES[mode]
+        T = read_accessor(f, f.get(sampler, "input", "index", what), f"{what} input",
+                          types=("SCALAR",))[:, 0]
+        if np.any(np.diff(T) <= 0):
+            k = int(np.flatnonzero(np.diff(T) <= 0)[0])
+            raise f.error(f"{what} input: increasing key times",
+                          f"{T[k]:g} then {T[k + 1]:g}")
+        m = 4 if path == "rotation" else 3
+        out = read_accessor(f, f.get(sampler, "output", "index", what), f"{what} output",
+                            types=("VEC4",) if m == 4 else ("VEC3",))
+        per = 3 if self.mode == "cubic" else 1
+        if len(out) != per * len(T):
+            raise f.error(f"{what} output: {per * len(T)} values ({len(T)} keys"
+                          f"{', 3 per key for CUBICSPLINE' if per == 3 else ''})",
+                          str(len(out)))
+        out = np.asarray(out, dtype=float).reshape(len(T), per, m)
+        if m == 4:
+            out = out[..., [3, 0, 1, 2]]
+        if self.mode == "cubic" and len(T) == 1:       # one key: a constant
+            self.mode = "linear"
+            out = out[:, 1:2]
+        if self.mode == "cubic":
+            self.tin, self.v, self.tout = out[:, 0], out[:, 1], out[:, 2]
+        else:
+            self.v = out[:, 0]
+            self.tin = self.tout = None
+        if m == 4:
+            n = np.linalg.norm(self.v, axis=-1)
+            if np.any(n <= 1e-12):
+                raise f.error(f"{what} output: non-zero rotation quaternions",
+                              f"a zero one at key {int(np.argmin(n))}")
+            if self.mode != "cubic":
+                self.v = self.v / n[:, None]
+        self.t = T
+
+    @property
+    def constant(self) -> bool:
+        """True when the channel holds one value all along."""
+        same = bool(np.all(self.v == self.v[:1]))
+        if self.mode == "cubic":
+            same = same and not self.tin.any() and not self.tout.any()
+        return same
+
+    def rest_value(self) -> np.ndarray:
+        """The value it holds (for a constant channel), unit for a rotation."""
+        v = self.v[0]
+        return v / np.linalg.norm(v) if self.path == "rotation" else v
+
+    def rekey(self, U: np.ndarray) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None]:
+        """Values (and for cubic channels in- and out-tangents per second) at times ``U``
+        such that interpolating them piece by piece with this channel's mode gives
+        exactly this channel (before its first key and after its last it holds)."""
+        T, v = self.t, self.v
+        K = T.size
+        i = np.searchsorted(T, U, side="right") - 1            # -1 .. K-1
+        before = i < 0
+        ic = np.clip(i, 0, K - 1)
+        on = ~before & (T[ic] == U)
+        after = (i == K - 1) & ~on
+        inner = ~before & ~on & ~after
+        j = np.minimum(ic + 1, K - 1)
+        dt = np.where(inner, T[j] - T[ic], 1.0)
+        s = np.where(inner, (U - T[ic]) / dt, 0.0)
+        val = v[ic].copy()
+        val[before] = v[0]
+        tin = tout = None
+        if self.mode == "linear" and inner.any():
+            if self.path == "rotation":
+                val[inner] = tf.quat_slerp(v[ic[inner]], v[j[inner]], s[inner])
+            else:
+                val[inner] = v[ic[inner]] + s[inner, None] * (v[j[inner]] - v[ic[inner]])
+        elif self.mode == "cubic":
+            tin = np.zeros_like(val)
+            tout = np.zeros_like(val)
+            # at a key: its own tangents, but 0 on a side where the channel holds
+            tin[on & (ic > 0)] = self.tin[ic[on & (ic > 0)]]
+            tout[on & (ic < K - 1)] = self.tout[ic[on & (ic < K - 1)]]
+            if inner.any():
+                k, k1, ss, d = ic[inner], j[inner], s[inner, None], dt[inner, None]
+                p0, m0, p1, m1 = v[k], self.tout[k], v[k1], self.tin[k1]
+                s2, s3 = ss * ss, ss * ss * ss
+                val[inner] = ((2 * s3 - 3 * s2 + 1) * p0 + (s3 - 2 * s2 + ss) * d * m0
+                              + (-2 * s3 + 3 * s2) * p1 + (s3 - s2) * d * m1)
+                der = ((6 * s2 - 6 * ss) * p0 / d + (3 * s2 - 4 * ss + 1) * m0
+                       + (-6 * s2 + 6 * ss) * p1 / d + (3 * s2 - 2 * ss) * m1)
+                tin[inner] = der
+                tout[inner] = der
+        return val, tin, tout
+
+    def sample(self, U: np.ndarray) -> np.ndarray:
+        """The channel's value at times ``U`` (unit rotations)."""
+        val = self.rekey(U)[0]
+        if self.path == "rotation":
+            val = val / np.linalg.norm(val, axis=-1, keepdims=True)
+        return val
+
+
+def _channels(f: GltfFile, a: int, relevant: set[int], n_nodes: int
+              ) -> dict[tuple[int, str], Channel]:
+    """The translation, rotation and scale channels of animation ``a`` on ``relevant``
+    nodes (the others are not decoded)."""
+    anim = f.item("animations", a, f"animation {a}")
+    where = f"animations[{a}]"
+    samplers = f.get(anim, "samplers", "array", where)
+    chans = f.get(anim, "channels", "array", where)
+    out: dict[tuple[int, str], Channel] = {}
+    made: dict[tuple[int, str], Channel] = {}
+    for c, ch in enumerate(chans):
+        cw = f"{where}.channels[{c}]"
+        if not isinstance(ch, dict):
+            raise f.error(f"{cw}: a JSON object", repr(ch)[:40])
+        s = f.get(ch, "sampler", "index", cw, below=len(samplers))
+        tgt = f.get(ch, "target", "object", cw)
+        node = f.get(tgt, "node", "index", cw + ".target", None, below=n_nodes)
+        path = f.get(tgt, "path", "string", cw + ".target")
+        if node is None or path not in _PATHS or node not in relevant:
+            continue             # morph weights, pointers, nodes off the skeleton
+        if (node, path) in out:
+            raise f.error(f"{where}: one channel per node and path",
+                          f"two for node {node}'s {path}")
+        sampler = samplers[s]
+        if not isinstance(sampler, dict):
+            raise f.error(f"{where}.samplers[{s}]: a JSON object", repr(sampler)[:40])
+        key = (s, path)
+        if key not in made:
+            made[key] = Channel(f, a, s, sampler, path)
+        out[(node, path)] = made[key]
+    return out
+
+
+def _chain(scene: Scene, node: int, stop: int | None) -> list[int]:
+    """Nodes from just below ``stop`` (None: the top of the tree) down to ``node``."""
+    out = [node]
+    p = int(scene.parent[node])
+    while p >= 0 and p != stop:
+        out.append(p)
+        p = int(scene.parent[p])
+    return out[::-1]
+
+
+def _product(M: np.ndarray, nodes: list[int]) -> np.ndarray:
+    out = np.eye(4)
+    for k in nodes:
+        out = out @ M[k]
+    return out
+
+
+def decode_clip(f: GltfFile, scene: Scene, J: Joints, a: int, name: str) -> Clip:
+    """Animation ``a`` of ``f`` as a clip of ``J.skeleton`` (see the module docs)."""
+    sk = J.skeleton
+    b = sk.n_bones
+    nodes = J.nodes
+    bone_of = {node: i for i, node in enumerate(nodes)}
+    relevant: set[int] = set()
+    for j in nodes:
+        relevant.add(j)
+        relevant.update(scene.ancestors(j))
+    chans = _channels(f, a, relevant, scene.n)
+
+    # constant channels are part of the rest; the others move
+    T0, Q0, S0 = scene.T.copy(), scene.Q.copy(), scene.S.copy()
+    moving: dict[tuple[int, str], Channel] = {}
+    for (node, path), ch in chans.items():
+        if ch.constant:
+            {"translation": T0, "rotation": Q0, "scale": S0}[path][node] = ch.rest_value()
+        else:
+            moving[(node, path)] = ch
+    for (node, _path) in moving:
+        if scene.matrix[node] and not np.allclose(
+                trs_matrices(scene.T[node], scene.Q[node], scene.S[node]),
+                scene.local[node], atol=1e-6 * max(1.0, np.abs(scene.local[node]).max())):
+            raise f.error(f"animation {a}: channels on nodes given by translation, rotation "
+                          "and scale", f"node {node} given by a matrix with shear")
+    static = scene.local.copy()
+    touched = {node for node, _ in chans}
+    for node in touched:
+        static[node] = trs_matrices(T0[node], Q0[node], S0[node])
+    # the union of the moving channels' keys, and the first and last key of any
+    # channel on the skeleton (the animation's extent)
+    times = {float(t) for ch in moving.values() for t in ch.t}
+    times.update(float(t) for ch in chans.values() for t in (ch.t[0], ch.t[-1]))
+    U = np.array(sorted(times) or [0.0])
+    k = U.size
+
+    # scales that change: named once per animation
+    label = f"animation {a} ({name!r})"
+    grow = [(node, float(np.abs(ch.v / np.where(ch.v[:1] == 0, 1, ch.v[:1]) - 1).max()))
+            for (node, path), ch in moving.items() if path == "scale"]
+    loud = [(node, d) for node, d in grow if d > SCALE_TOL]
+    if loud:
+        who = ", ".join(f"{'joint' if node in bone_of else 'node'} "
+                        f"{(sk.names[bone_of[node]] if node in bone_of else scene.name(node))!r}"
+                        f" (by up to {d:.3g})" for node, d in loud[:6])
+        warnings.warn(f"{str(f.path)!r}: {label} changes the scale of {who}; bones are "
+                      "rigid, so that scaling is dropped (the children still move as in "
+                      "the file)", UserWarning, stacklevel=4)
+
+    # ---- the exact values at the union times: the node hierarchy, evaluated
+    order = [int(x) for x in scene.order if int(x) in relevant]
+    f.reserve(k * len(order) * 16 * 8 * 2 + k * b * 200, f"{label}: {k} keys over "
+              f"{len(order)} nodes")
+    Nloc = {}
+    for node in order:
+        if not any((node, p) in moving for p in _PATHS):
+            Nloc[node] = np.broadcast_to(static[node], (k, 4, 4))
+            continue
+        t = moving[(node, "translation")].sample(U) if (node, "translation") in moving \
+            else np.broadcast_to(T0[node], (k, 3))
+        q = moving[(node, "rotation")].sample(U) if (node, "rotation") in moving \
+            else np.broadcast_to(Q0[node], (k, 4))
+        s = moving[(node, "scale")].sample(U) if (node, "scale") in moving \
+            else np.broadcast_to(S0[node], (k, 3))
+        Nloc[node] = trs_matrices(np.asarray(t), np.asarray(q), np.asarray(s))
+    G = {}
+    for node in order:
+        p = int(scene.parent[node])
+        G[node] = Nloc[node] if p < 0 else G[p] @ Nloc[node]
+    Gj = np.stack([G[j] for j in nodes], axis=1)                 # (k, b, 4, 4)
+    M = Gj @ J.ibm
+    R, dev = polar(M[..., :3, :3])
+    O = Gj[..., :3, 3]
+    ones, zeros = np.ones((k, b)), np.zeros((k, b, 2))
+    Lg, Dg = local_arrays(sk, R, O, ones, zeros)
+    worst = float(dev.max(initial=0.0))
+    if worst > SCALE_TOL and not loud:
+        kk, i = np.unravel_index(int(np.argmax(dev)), dev.shape)
+        warnings.warn(f"{str(f.path)!r}: {label} scales or shears joint {sk.names[i]!r} (its "
+                      f"skin matrix is up to {worst:.3g} off rigid at {U[kk]:g} s); bones are "
+                      "rigid, so that is dropped", UserWarning, stacklevel=4)
+
+    # ---- each bone's channels: analytic where the structure allows, checked
+    quats = tf.matrix_to_quat(Lg)
+    offs = Dg.copy()
+    rmode, dmode = ["linear"] * b, ["linear"] * b
+    rtan = [np.zeros((k, b, 4)), np.zeros((k, b, 4))]
+    dtan = [np.zeros((k, b, 3)), np.zeros((k, b, 3))]
+    size = float(np.linalg.norm(np.ptp(sk.C, axis=0))) or 1.0
+    A = sk.A
+    world0 = static.copy()
+    for node in order:
+        p = int(scene.parent[node])
+        if p >= 0:
+            world0[node] = world0[p] @ static[node]
+    for i, node in enumerate(nodes):
+        pb = int(sk.parents[i])
+        pnode = nodes[pb] if pb >= 0 else None
+        chain = _chain(scene, node, pnode)
+        # rotation: one animated rotation in the chain (an animated scale on the way
+        # that shears or changes the frame fails the check against the exact values)
+        rot = [x for x in chain if (x, "rotation") in moving]
+        if len(rot) == 1:
+            x = rot[0]
+            c = chain.index(x)
+            pre = _product(static, chain[:c])
+            post = np.diag([*S0[x], 1.0]) @ _product(static, chain[c + 1:])
+            left = polar(pre[:3, :3])[0]
+            if pb >= 0:
+                left = polar(J.ibm[pb, :3, :3])[0].T @ left
+            right = polar(post[:3, :3] @ J.ibm[i, :3, :3])[0]
+            qa, qb = tf.matrix_to_quat(left), tf.matrix_to_quat(right)
+            ch = moving[(x, "rotation")]
+            val, tin, tout = ch.rekey(U)
+            q = _qmul(_qmul(qa, val), qb)
+            if np.abs(tf.quat_to_matrix(q) - Lg[:, i]).max() <= CHECK_TOL:
+                quats[:, i] = q
+                rmode[i] = ch.mode
+                if ch.mode == "cubic":
+                    rtan[0][:, i] = _qmul(_qmul(qa, tin), qb)
+                    rtan[1][:, i] = _qmul(_qmul(qa, tout), qb)
+        # offset: one animated translation in the chain, nothing else moving above it
+        below = chain[:-1]
+        moved = [x for x in chain if (x, "translation") in moving]
+        still = not any((x, "rotation") in moving or (x, "scale") in moving for x in below)
+        if len(moved) == 1 and still:
+            x = moved[0]
+            c = chain.index(x)
+            pre = _product(static, chain[:c])
+            post = _product(static, chain[c + 1:])
+            K = np.eye(3)
+            base = A[i].copy()
+            if pb >= 0:
+                Rp = polar(world0[pnode][:3, :3] @ J.ibm[pb, :3, :3])[0]
+                K = Rp.T @ world0[pnode][:3, :3]
+                base = A[i] - A[pb]
+            Lx = trs_matrices(np.zeros(3), Q0[x], S0[x])[:3, :3]
+            Amat = K @ pre[:3, :3]
+            cvec = K @ (pre[:3, 3] + pre[:3, :3] @ Lx @ post[:3, 3]) - base
+            ch = moving[(x, "translation")]
+            val, tin, tout = ch.rekey(U)
+            d = val @ Amat.T + cvec
+            if np.abs(d - Dg[:, i]).max() <= CHECK_TOL * size:
+                offs[:, i] = d
+                dmode[i] = ch.mode
+                if ch.mode == "cubic":
+                    dtan[0][:, i] = tin @ Amat.T
+                    dtan[1][:, i] = tout @ Amat.T
+    step = np.diff(U)
+    fps = 30.0
+    if step.size and np.ptp(step) <= 1e-6 * step.mean() and step.mean() > 0:
+        fps = 1.0 / float(step.mean())
+    cubic_r = "cubic" in rmode
+    cubic_d = "cubic" in dmode
+    return Clip.from_local(sk, U, rotations=quats, offsets=offs, fps=fps,
+                           rotation_interpolation=rmode, offset_interpolation=dmode,
+                           rotation_tangents=tuple(rtan) if cubic_r else None,
+                           offset_tangents=tuple(dtan) if cubic_d else None)

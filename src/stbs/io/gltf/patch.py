@@ -1,0 +1,173 @@
+"""Writing a character back: a copy of its glTF file plus what stbs added.
+
+The paper's promise is that STBS needs "only an extra scalar weight function per
+bone ... without changing the existing skeleton rig or bone weights". So a rig read
+from a glTF file is written back as a *copy* of that file -- nodes, joint orientations,
+animations, materials and textures as they were -- with, on every primitive the rig's
+vertices came from (``rig.meta["gltf"]["primitives"]``):
+
+- the endpoint weights as ``_ENDPOINT_WEIGHTS_n``, aligned with ``JOINTS_n``;
+- when the rig's bone weights are no longer the file's (recomputed, painted), new
+  ``JOINTS_0``/``WEIGHTS_0`` (each vertex's four heaviest joints of that primitive's
+  skin, quantised to sum to 65535) in place of the file's sets;
+
+and the bone table (:mod:`stbs.io.gltf.bones`) in each of the rig's skins. The copy is
+self-contained: the buffers the file uses become one (the GLB's BIN chunk, or a
+``data:`` URI), and external PNG or JPEG images are embedded, so it can be written
+anywhere.
+"""
+
+from __future__ import annotations
+
+import copy
+import os
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ...rig.model import Rig
+from .accessors import ARRAY_BUFFER, FLOAT, AccessorWriter, read_accessor
+from .bones import TABLE_KEY, bone_table
+from .container import GltfFile
+from .read import primitive_weights
+from .scene import Scene
+from .write import save_gltf_document, skin_attributes
+
+__all__ = ["write_back"]
+
+# A rig's weights within this of the file's (rows normalised) are the file's.
+_SAME_WEIGHTS = 1e-6
+_MAGIC = ((b"\x89PNG\r\n\x1a\n", "image/png"), (b"\xff\xd8\xff", "image/jpeg"))
+
+
+def _dense(X) -> np.ndarray:
+    return X.toarray() if hasattr(X, "toarray") else np.asarray(X, dtype=float)
+
+
+def _merge_buffers(f: GltfFile, doc: dict) -> AccessorWriter:
+    """One buffer holding every buffer a buffer view uses (views moved into it), and
+    the external PNG/JPEG images; unused buffers are dropped unopened."""
+    blob = AccessorWriter()
+    base: dict[int, int] = {}
+    views = doc.get("bufferViews", [])
+    for v in views:
+        k = v.get("buffer")
+        if k not in base:
+            blob.data.extend(b"\0" * (-len(blob.data) % 16))    # keeps every alignment
+            base[k] = len(blob.data)
+            blob.data.extend(f.buffer(k))
+        v["buffer"] = 0
+        v["byteOffset"] = base[k] + v.get("byteOffset", 0)
+    blob.view_base = len(views)
+    for i, img in enumerate(doc.get("images", [])):
+        uri = img.get("uri") if isinstance(img, dict) else None
+        if not isinstance(uri, str) or uri.startswith("data:"):
+            continue
+        p = f.resolve(uri, f"images[{i}].uri")
+        if not p.is_file():
+            continue                  # as broken as in the source; left as it was
+        data = p.read_bytes()
+        mime = next((m for magic, m in _MAGIC if data.startswith(magic)), None)
+        if mime is None:
+            continue                  # KTX2, WebP: need their extension's rules; kept
+        img.pop("uri")
+        img["bufferView"] = blob.raw(data)
+        img["mimeType"] = mime
+    return blob
+
+
+def write_back(src: str | os.PathLike, dst: str | os.PathLike, rig: Rig) -> None:
+    """Write ``rig`` (read from the glTF file ``src``) to ``dst`` as a copy of ``src``
+    with its endpoint weights and bone table (see the module docs).
+
+    Raises
+    ------
+    ValueError
+        ``rig`` was not read from a glTF file, has no endpoint weights, or does not fit
+        ``src`` (other vertex counts or joints).
+    FormatError
+        ``src`` is damaged (as :func:`stbs.io.read_gltf` would say).
+    """
+    info = (rig.meta or {}).get("gltf")
+    if not isinstance(info, dict) or "primitives" not in info or "joints" not in info:
+        raise ValueError("rig.meta['gltf'] is missing or from an older stbs: read the rig "
+                         "from its glTF file again (or write it without source=)")
+    if rig.E is None:
+        raise ValueError("the rig has no endpoint weights (E) to add")
+    f = GltfFile(src)
+    if "EXT_meshopt_compression" in f.get(f.doc, "extensionsUsed", "array", "glTF", []):
+        raise ValueError(f"{str(f.path)!r} uses EXT_meshopt_compression; write the rig "
+                         "without source= (a fresh glTF file)")
+    scene = Scene(f)
+    joints = [int(j) for j in info["joints"]]
+    sk = rig.skeleton
+    b = sk.n_bones
+    if len(joints) != b or any(not 0 <= j < scene.n for j in joints):
+        raise ValueError(f"{str(f.path)!r} is not the file the rig was read from (the rig has "
+                         f"{b} bones, its record names {len(joints)} joint nodes)")
+    col = {j: i for i, j in enumerate(joints)}
+    doc: dict[str, Any] = copy.deepcopy(f.doc)
+    blob = _merge_buffers(f, doc)
+    accessors = doc.setdefault("accessors", [])
+    blob.accessor_base = len(accessors)
+    W = _dense(rig.W)
+    E = _dense(rig.E)
+    done: set[tuple[int, int]] = set()
+    total = 0
+    for e in info["primitives"]:
+        m, k, s = int(e["mesh"]), int(e["primitive"]), int(e["skin"])
+        start, n = int(e["start"]), int(e["count"])
+        total += n
+        if (m, k) in done:
+            continue                   # a mesh drawn by two nodes: its attributes are shared
+        done.add((m, k))
+        what = f"mesh {m} primitive {k}"
+        try:
+            prim = doc["meshes"][m]["primitives"][k]
+            at = prim["attributes"]
+            count = f.items("accessors")[at["POSITION"]]["count"]
+            to_bone = np.array([col[j] for j in scene.skin_joints(s)])
+        except (KeyError, IndexError, TypeError):
+            raise ValueError(f"{str(f.path)!r} is not the file the rig was read from ({what} "
+                             "or its skin's joints differ)") from None
+        if count != n or start + n > len(W):
+            raise ValueError(f"{str(f.path)!r} is not the file the rig was read from ({what} "
+                             f"has {count} vertices, the rig's record {n})")
+        rows = slice(start, start + n)
+        Wf, _ = primitive_weights(f, at, n, to_bone, b, what)
+        Wr = W[rows]
+        same = np.abs(Wf / Wf.sum(1, keepdims=True)
+                      - Wr / np.maximum(Wr.sum(1, keepdims=True), 1e-300)).max() <= _SAME_WEIGHTS
+        for name in [a for a in at if a.startswith("_ENDPOINT_WEIGHTS_")]:
+            del at[name]
+        if same:
+            c = 0
+            while f"JOINTS_{c}" in at:
+                J = read_accessor(f, at[f"JOINTS_{c}"], f"{what} JOINTS_{c}", floats=False)
+                Wk = read_accessor(f, at[f"WEIGHTS_{c}"], f"{what} WEIGHTS_{c}")
+                e4 = np.where(Wk > 0, E[rows][np.arange(n)[:, None], to_bone[J]], 0.0)
+                at[f"_ENDPOINT_WEIGHTS_{c}"] = blob.add(np.clip(e4, 0, 1), FLOAT, "VEC4",
+                                                        target=ARRAY_BUFFER)
+                c += 1
+        else:
+            outside = np.delete(Wr, to_bone, axis=1).sum() if len(to_bone) < b else 0.0
+            if outside > 1e-6 * Wr.sum():
+                raise ValueError(f"{what}: the rig weighs joints its skin {s} does not have; "
+                                 "write the rig without source= (a fresh glTF file)")
+            for name in [a for a in at if a.startswith(("JOINTS_", "WEIGHTS_"))]:
+                del at[name]
+            at.update(skin_attributes(blob, Wr[:, to_bone], E[rows][:, to_bone],
+                                      len(to_bone)))
+    if total != len(W):
+        raise ValueError(f"the rig has {len(W)} vertices, the file's skinned meshes {total}")
+    table = bone_table(sk, joints)
+    for s in info.get("skins", []):
+        skin = doc["skins"][int(s)]
+        extras = skin.setdefault("extras", {})
+        if not isinstance(extras, dict):
+            skin["extras"] = extras = {"value": extras}
+        extras[TABLE_KEY] = table
+    doc["bufferViews"] = doc.get("bufferViews", []) + blob.views
+    doc["accessors"] = accessors + blob.accessors
+    save_gltf_document(Path(os.fspath(dst)), doc, blob.blob())

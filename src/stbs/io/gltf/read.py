@@ -1,0 +1,427 @@
+"""glTF 2.0 characters in: :func:`read_gltf` -> (:class:`stbs.Rig`, clips).
+
+How a glTF character becomes a rig
+----------------------------------
+- **Which meshes.** Every node with a mesh and a skin whose joints belong to one
+  skeleton (skins sharing joints, or one's joints below another's, are one skeleton):
+  several meshes sharing a skin, and several skins over one joint hierarchy, are read
+  together. ``skin=`` and ``mesh=`` pick others when a file holds several skeletons
+  (the first is read by default, with a warning listing the rest).
+- ``V`` is the POSITION data of those meshes' primitives, concatenated in node and
+  primitive order (with the mesh's default morph weights applied, if any), ``F`` their
+  triangles (strips and fans become triangles; points and lines are skipped with a
+  warning). The mesh node's own transform is ignored, as the specification says for
+  skinned meshes. ``rig.meta["gltf"]["primitives"]`` records where each primitive's
+  vertices came from, so writing the rig back adds endpoint weights to each of them.
+- **Bones.** One bone per joint node of those skins (their union, in the order the
+  skins list them), named after the node (``node<k>`` for an unnamed one or a name
+  shared by several joints), starting at the joint's *bind* position (from the inverse
+  bind matrices, not from the node transforms); its parent bone is the nearest joint
+  above it. Where each bone ends is :func:`stbs.rig.rig_from_joints`'s: at the child
+  that continues it, a leaf's tail kept inside the mesh. A file written by stbs
+  brings its own bone table back (:mod:`stbs.io.gltf.bones`).
+- ``W`` has one column per bone, from every ``JOINTS_n``/``WEIGHTS_n`` set, each row
+  divided by its sum (the renormalisation engines apply to quantised weights); ``E``
+  from ``_ENDPOINT_WEIGHTS_n`` (as stbs writes them), else None. When several skins
+  bind the same joint differently, a vertex is moved to where the first skin's bind
+  puts it (its rest pose in the file), so one bind serves all.
+- **Clips.** One per animation, decoded only when asked for (the mapping returned is
+  lazy): see :mod:`stbs.io.gltf.animation` for how ``clip.pose(t)`` equals the file's
+  node hierarchy at any time.
+"""
+
+from __future__ import annotations
+
+import os
+import warnings
+from collections.abc import Iterator, Mapping
+
+import numpy as np
+
+from ...clip import Clip
+from ...rig.joints import rig_from_joints
+from ...rig.model import Rig
+from .._parse import suffix
+from .accessors import UBYTE, USHORT, read_accessor
+from .animation import Joints, animation_names, decode_clip
+from .bones import read_bone_table
+from .container import GltfFile
+from .scene import Scene
+
+__all__ = ["read_gltf", "GLTF_EXTENSIONS", "GltfAnimations", "primitive_weights"]
+
+GLTF_EXTENSIONS = (".gltf", ".glb")
+# Extensions without which the geometry cannot be read.
+_UNSUPPORTED = ("KHR_draco_mesh_compression", "EXT_meshopt_compression")
+
+
+class GltfAnimations(Mapping):
+    """The animations of a glTF file as clips, by name, decoded on first access.
+
+    A :class:`collections.abc.Mapping` of ``str`` to :class:`stbs.Clip`; iterating or
+    ``len`` reads only the names. A decoded clip is kept.
+    """
+
+    def __init__(self, f: GltfFile, scene: Scene, joints: Joints):
+        self._f, self._scene, self._joints = f, scene, joints
+        self._names = animation_names(f)
+        self._clips: dict[str, Clip] = {}
+
+    def __getitem__(self, name: str) -> Clip:
+        if name not in self._clips:
+            try:
+                a = self._names.index(name)
+            except ValueError:
+                raise KeyError(name) from None
+            self._clips[name] = decode_clip(self._f, self._scene, self._joints, a, name)
+        return self._clips[name]
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self._names)
+
+    def __len__(self) -> int:
+        return len(self._names)
+
+    def __repr__(self) -> str:
+        return f"GltfAnimations({self._f.path.name!r}: {', '.join(map(repr, self._names))})"
+
+
+# ---------------------------------------------------------------------- which meshes
+def _label(scene: Scene, k: int, mesh: int, skin: int) -> str:
+    return f"node {k} ({scene.names[k]!r}: mesh {mesh}, skin {skin})"
+
+
+def _skeletons(scene: Scene, skins: list[int]) -> dict[int, int]:
+    """Skin -> the first skin of its skeleton: skins sharing joints, or with joints
+    below another's, are one skeleton."""
+    joints = {s: set(scene.skin_joints(s)) for s in skins}
+    reach = {s: set(j) | {a for x in j for a in scene.ancestors(x)} for s, j in joints.items()}
+    root = {s: s for s in skins}
+
+    def find(s):
+        while root[s] != s:
+            s = root[s]
+        return s
+
+    for x in skins:
+        for y in skins:
+            if x < y and (joints[x] & reach[y] or joints[y] & reach[x]):
+                root[find(y)] = find(x)
+    return {s: find(s) for s in skins}
+
+
+def _select(f: GltfFile, scene: Scene, skin, mesh) -> list[tuple[int, int, int]]:
+    """The (node, mesh, skin) triples to read (see the module docs)."""
+    if not f.items("skins"):
+        raise f.error("a skin (a skinned mesh with joints)", "no skins")
+    skinned = scene.skinned_nodes()
+    if not skinned:
+        raise f.error("a node with both a mesh and a skin", "none")
+    meshes, skins = f.items("meshes"), f.items("skins")
+
+    def named(x, i):
+        return x[i].get("name") if isinstance(x[i], dict) else None
+
+    cands = skinned
+    if mesh is not None:
+        cands = [c for c in cands if mesh in (c[0], scene.names[c[0]], c[1], named(meshes, c[1]))]
+    if skin is not None:
+        cands = [c for c in cands if skin in (c[2], named(skins, c[2]))]
+    if not cands:
+        raise ValueError(f"{str(f.path)!r}: no skinned mesh matches mesh={mesh!r}, "
+                         f"skin={skin!r}; there are "
+                         f"{'; '.join(_label(scene, *c) for c in skinned)}")
+    group = _skeletons(scene, sorted({c[2] for c in skinned}))
+    first = group[cands[0][2]]
+    chosen = [c for c in cands if group[c[2]] == first]
+    others = [c for c in cands if group[c[2]] != first]
+    if others:
+        warnings.warn(f"{str(f.path)!r} has skinned meshes on {len({group[c[2]] for c in cands})}"
+                      f" skeletons; reading the one of {_label(scene, *chosen[0])} (pick "
+                      f"another with skin= or mesh=; the others: "
+                      f"{'; '.join(_label(scene, *c) for c in others[:6])})",
+                      UserWarning, stacklevel=3)
+    return chosen
+
+
+# ---------------------------------------------------------------------- geometry
+def _triangles(f: GltfFile, prim: dict, what: str, n: int) -> np.ndarray | None:
+    mode = f.get(prim, "mode", "index", what, 4)
+    i = f.get(prim, "indices", "index", what, None)
+    idx = (np.arange(n) if i is None else
+           read_accessor(f, i, f"{what} indices", floats=False, types=("SCALAR",))[:, 0])
+    if idx.size and (idx.min() < 0 or idx.max() >= n):
+        raise f.error(f"{what} indices below its {n} vertices", str(int(idx.max())))
+    if mode == 4:
+        if idx.size % 3:
+            raise f.error(f"{what}: a multiple of 3 indices (triangles)", str(idx.size))
+        return idx.reshape(-1, 3).astype(np.int64)
+    if mode == 5:       # strip: alternate the winding
+        m = np.arange(max(idx.size - 2, 0))
+        return np.column_stack([idx[m], idx[m + 1 + m % 2], idx[m + 2 - m % 2]])
+    if mode == 6:       # fan
+        m = np.arange(1, max(idx.size - 1, 1))
+        return np.column_stack([np.full(m.size, idx[0]), idx[m], idx[m + 1]])
+    return None
+
+
+def _morphed(f: GltfFile, prim: dict, node: dict, mesh: dict, V: np.ndarray, what: str):
+    """POSITION with the default morph weights (the node's, else the mesh's) applied."""
+    targets = f.get(prim, "targets", "array", what, [])
+    w = node.get("weights", mesh.get("weights"))
+    if not targets or not isinstance(w, list) or not any(
+            isinstance(x, (int, float)) and x for x in w):
+        return V
+    if len(w) != len(targets):
+        raise f.error(f"{what}: {len(targets)} default morph weights", str(len(w)))
+    V = V.copy()
+    for t, (tgt, wt) in enumerate(zip(targets, w, strict=True)):
+        if wt and isinstance(tgt, dict) and "POSITION" in tgt:
+            d = read_accessor(f, tgt["POSITION"], f"{what} target {t} POSITION",
+                              types=("VEC3",))
+            if d.shape != V.shape:
+                raise f.error(f"{what} target {t}: {len(V)} POSITION offsets", str(len(d)))
+            V += float(wt) * d
+    return V
+
+
+def _weight_sets(f: GltfFile, at: dict, n: int, nj: int, what: str):
+    """[(J, W, E or None)] of every JOINTS_n/WEIGHTS_n set of a primitive."""
+    sets = []
+    while True:
+        k = len(sets)
+        ja, wa = at.get(f"JOINTS_{k}"), at.get(f"WEIGHTS_{k}")
+        if ja is None and wa is None:
+            break
+        if ja is None or wa is None:
+            raise f.error(f"{what}: JOINTS_{k} and WEIGHTS_{k} together", "only one of them")
+        J = read_accessor(f, ja, f"{what} JOINTS_{k}", floats=False, types=("VEC4",))
+        ct = f.items("accessors")[ja].get("componentType")
+        if ct not in (UBYTE, USHORT):
+            raise f.error(f"{what} JOINTS_{k}: unsigned byte or short joints", str(ct))
+        W = read_accessor(f, wa, f"{what} WEIGHTS_{k}", types=("VEC4",))
+        if len(J) != n or len(W) != n:
+            raise f.error(f"{what}: JOINTS_{k}/WEIGHTS_{k} of {n} vertices",
+                          f"{len(J)} and {len(W)}")
+        if (W < 0).any():
+            raise f.error(f"{what} WEIGHTS_{k}: weights >= 0", f"{W.min():.6g}")
+        used = W > 0
+        if used.any() and J[used].max() >= nj:
+            raise f.error(f"{what} JOINTS_{k}: joints of its skin, in 0..{nj - 1}",
+                          str(int(J[used].max())))
+        E = None
+        ea = at.get(f"_ENDPOINT_WEIGHTS_{k}")
+        if ea is not None:
+            E = read_accessor(f, ea, f"{what} _ENDPOINT_WEIGHTS_{k}", types=("VEC4",))
+            if len(E) != n or E.min(initial=0) < 0 or E.max(initial=0) > 1:
+                raise f.error(f"{what} _ENDPOINT_WEIGHTS_{k}: {n} values in [0, 1]",
+                              f"{len(E)}, in [{E.min():.3g}, {E.max():.3g}]")
+        sets.append((J, W, E))
+    if not sets:
+        raise f.error(f"{what}: JOINTS_0 and WEIGHTS_0 (a skinned primitive)", "none")
+    return sets
+
+
+def primitive_weights(f: GltfFile, at: dict, n: int, to_bone: np.ndarray, b: int,
+                      what: str) -> tuple[np.ndarray, np.ndarray | None]:
+    """(n, b) weights and endpoint weights (or None) of a skinned primitive's vertices
+    over the rig's bones; ``to_bone`` maps its skin's joints to bones. Rows as in the
+    file (not normalised); every vertex has some weight."""
+    sets = _weight_sets(f, at, n, len(to_bone), what)
+    f.reserve(n * b * 8 * (2 + (sets[0][2] is not None)),
+              f"{what}: weights of {n} vertices over {b} joints")
+    W = np.zeros((n, b))
+    E = np.zeros((n, b)) if sets[0][2] is not None else None
+    rows = np.repeat(np.arange(n), 4)
+    for J, Wk, Ek in sets:
+        use = (Wk > 0).ravel()
+        cols = to_bone[np.where(Wk > 0, J, 0)].ravel()
+        np.add.at(W, (rows[use], cols[use]), Wk.ravel()[use])
+        if E is not None and Ek is not None:
+            E[rows[use], cols[use]] = Ek.ravel()[use]
+        elif (E is None) != (Ek is None):
+            raise f.error(f"{what}: _ENDPOINT_WEIGHTS_n beside every JOINTS_n or none",
+                          "beside some")
+    tot = W.sum(axis=1)
+    if (tot <= 0).any():
+        v = int(np.flatnonzero(tot <= 0)[0])
+        raise f.error(f"{what}: every vertex with a positive weight",
+                      f"{int((tot <= 0).sum())} vertices with none (e.g. vertex {v})")
+    return W, E
+
+
+def _names(scene: Scene, nodes: list[int]) -> list[str]:
+    raw = [scene.names[k] for k in nodes]
+    count: dict[str | None, int] = {}
+    for r in raw:
+        count[r] = count.get(r, 0) + 1
+    out = [r if r and count[r] == 1 else f"node{k}" for r, k in zip(raw, nodes, strict=True)]
+    seen: set[str] = set()
+    for i, nm in enumerate(out):
+        while nm in seen:            # a node really called "node7" next to an unnamed 7
+            nm = f"{nm}_"
+        seen.add(nm)
+        out[i] = nm
+    return out
+
+
+def _read(f: GltfFile, skin, mesh) -> tuple[Rig, Scene, Joints]:
+    req = f.get(f.doc, "extensionsRequired", "array", "glTF", [])
+    bad = [e for e in req if e in _UNSUPPORTED]
+    if bad:
+        raise f.error("geometry stbs can decode (no mesh compression extension required)",
+                      f"extensionsRequired {bad[0]!r}")
+    scene = Scene(f)
+    chosen = _select(f, scene, skin, mesh)
+    skins: list[int] = []
+    for _, _, s in chosen:
+        if s not in skins:
+            skins.append(s)
+    nodes: list[int] = []
+    ibm: list[np.ndarray] = []
+    col: dict[int, int] = {}
+    for s in skins:
+        M = scene.inverse_binds(s)
+        for j, node in enumerate(scene.skin_joints(s)):
+            if node not in col:
+                col[node] = len(nodes)
+                nodes.append(node)
+                ibm.append(M[j])
+    IBM = np.array(ibm)
+    b = len(nodes)
+    try:
+        bind = np.linalg.inv(IBM)
+    except np.linalg.LinAlgError:
+        raise f.error("invertible inverse bind matrices", "a singular one") from None
+    if not np.isfinite(bind).all():
+        raise f.error("invertible inverse bind matrices", "a singular one")
+    parent = np.full(b, -1, dtype=np.int64)
+    for i, node in enumerate(nodes):
+        for a in scene.ancestors(node):
+            if a in col:
+                parent[i] = col[a]
+                break
+
+    # ---- geometry
+    Vs, Fs, Ws, Es, prims = [], [], [], [], []
+    off = 0
+    meshes = f.items("meshes")
+    for node, m, s in chosen:
+        joints_s = scene.skin_joints(s)
+        to_bone = np.array([col[j] for j in joints_s])
+        # where this skin's bind differs from the first's: X_j = B_j IBM_s,j
+        X = bind[to_bone] @ scene.inverse_binds(s)
+        moved = not np.allclose(X, np.eye(4), atol=1e-9 * max(1.0, np.abs(X).max()))
+        mobj = f.item("meshes", m, f"node {node} mesh")
+        nobj = f.items("nodes")[node]
+        for k, prim in enumerate(f.get(mobj, "primitives", "array", f"meshes[{m}]")):
+            what = f"mesh {m} primitive {k}"
+            if not isinstance(prim, dict):
+                raise f.error(f"{what}: a JSON object", repr(prim)[:40])
+            at = f.get(prim, "attributes", "object", what)
+            if "POSITION" not in at:
+                raise f.error(f"{what}: a POSITION attribute", "none")
+            V = read_accessor(f, at["POSITION"], f"{what} POSITION", types=("VEC3",))
+            n = len(V)
+            F = _triangles(f, prim, what, n)
+            if F is None:
+                warnings.warn(f"{str(f.path)!r}: {what} is points or lines (mode "
+                              f"{prim.get('mode')}); skipped", UserWarning, stacklevel=3)
+                continue
+            V = _morphed(f, prim, nobj, meshes[m], V, what)
+            W, E = primitive_weights(f, at, n, to_bone, b, what)
+            tot = W.sum(axis=1)
+            if moved:
+                # the file's rest pose of each vertex under the first skin's binds
+                w = (W / tot[:, None])[:, to_bone]
+                Xv = np.einsum("nj,jab->nab", w, X)
+                V = np.einsum("nab,nb->na", Xv[:, :3, :3], V) + Xv[:, :3, 3]
+            Vs.append(V)
+            Fs.append(F + off)
+            Ws.append(W)
+            Es.append(E)
+            prims.append({"node": int(node), "mesh": int(m), "primitive": k, "skin": int(s),
+                          "start": off, "count": n})
+            off += n
+    if not Vs:
+        raise f.error("a skinned mesh with triangles", "points and lines only")
+    V = np.vstack(Vs)
+    F = np.vstack(Fs)
+    W = np.vstack(Ws)
+    E = None
+    if any(e is not None for e in Es):
+        if any(e is None for e in Es):
+            raise f.error("_ENDPOINT_WEIGHTS_0 on every primitive or on none", "on some only")
+        E = np.vstack(Es)
+    # Skin matrices G_j IBM_j that all scale by one factor c at rest (inverse binds
+    # made in a mesh's own units, under an "armature" node scaled by c) cannot pose
+    # rigid bones: the rig is then moved by Y, the root's skin matrix at rest (a
+    # similarity of scale c), into the space the file draws it in; the file's skin is
+    # unchanged: G_j IBM_j v = (G_j IBM_j Y^-1)(Y v).
+    M0 = scene.world()[nodes] @ IBM
+    sv = np.linalg.svd(M0[:, :3, :3], compute_uv=False)
+    c = float(np.exp(np.log(sv).mean()))
+    if abs(c - 1) > 1e-4 and np.abs(sv / c - 1).max() <= 1e-4:
+        Y = M0[int(np.flatnonzero(parent < 0)[0])]
+        V = V @ Y[:3, :3].T + Y[:3, 3]
+        IBM = IBM @ np.linalg.inv(Y)
+        bind = Y @ bind
+    names = _names(scene, nodes)
+    meta = {"gltf": {"file": f.path.name, "skins": [int(s) for s in skins],
+                     "joints": [int(j) for j in nodes], "primitives": prims,
+                     "select": {"skin": skin, "mesh": mesh}}}
+    A = bind[:, :3, 3]
+    size = float(np.linalg.norm(np.ptp(np.vstack([V, A]), axis=0))) or 1.0
+    sk = read_bone_table(f, skins, nodes, A, parent, size)
+    try:
+        if sk is None:
+            rig = rig_from_joints(V, F, W, bind, parent, names, meta=meta)
+        else:
+            rig = Rig(V=V, F=F, W=W / W.sum(axis=1, keepdims=True), skeleton=sk, meta=meta)
+    except ValueError as exc:
+        raise f.error("joints whose bind positions make a skeleton", str(exc)) from None
+    if E is not None:
+        rig = rig.replace(E=E)
+    return rig, scene, Joints(nodes=nodes, ibm=IBM, skeleton=rig.skeleton)
+
+
+def read_gltf(path: str | os.PathLike, *, skin: int | str | None = None,
+              mesh: int | str | None = None) -> tuple[Rig, Mapping[str, Clip]]:
+    """Read a skinned character and its animations from a glTF 2.0 file.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        ``.gltf`` (buffers in files beside it or in ``data:`` URIs) or ``.glb``.
+    skin, mesh : int or str, optional
+        Which skeleton to read when the file holds several: the one of a skin (index or
+        name), or of a mesh node (node index or name, or mesh index or name). Default:
+        the first skinned mesh's (with a warning listing the others).
+
+    Returns
+    -------
+    rig : Rig
+        3D; ``V``, ``F``, the skeleton (one bone per joint, see the module docs), ``W``;
+        ``E`` from ``_ENDPOINT_WEIGHTS_n`` where the file has them, else None.
+        ``rig.meta["gltf"]`` records the file, the skins, the joint node of each bone and
+        where each primitive's vertices came from.
+    clips : Mapping of str to Clip
+        One per animation, by name (``"animation_K"`` when unnamed), in file order,
+        decoded on first access (:class:`GltfAnimations`).
+
+    Raises
+    ------
+    FileNotFoundError
+        No such file.
+    FormatError
+        A file that is not glTF 2.0, damaged or hostile (see
+        :mod:`stbs.io.gltf.container`), no skinned mesh, a skin whose joints are not a
+        tree, an accessor out of range, weights that leave a vertex with none; the
+        message names the file, what was expected and what was found.
+    ValueError
+        ``skin=`` or ``mesh=`` matching no skinned mesh (the message lists them).
+    """
+    suffix(path, GLTF_EXTENSIONS, "read_gltf")
+    f = GltfFile(path)
+    rig, scene, joints = _read(f, skin, mesh)
+    return rig, GltfAnimations(f, scene, joints)

@@ -1,0 +1,230 @@
+"""The node hierarchy of a glTF file: parents, rest transforms, skins and their joints.
+
+:class:`Scene` checks the nodes once (every child index in range, no node with two
+parents, no cycle), keeps each node's rest transform as translation, rotation and
+scale (a ``matrix`` is split into them), and answers the questions the reader asks:
+which skinned meshes there are, which joints a skin has, where they sit.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ... import transforms as tf
+from .accessors import read_accessor
+from .container import GltfFile
+
+__all__ = ["Scene", "trs_matrices", "polar"]
+
+
+def trs_matrices(t: np.ndarray, q: np.ndarray, s: np.ndarray) -> np.ndarray:
+    """(..., 4, 4) matrices ``T R S`` of translations (..., 3), unit quaternions
+    (..., 4) ``(w, x, y, z)`` and scales (..., 3)."""
+    M = np.zeros(t.shape[:-1] + (4, 4))
+    M[..., :3, :3] = tf.quat_to_matrix(q) * s[..., None, :]
+    M[..., :3, 3] = t
+    M[..., 3, 3] = 1.0
+    return M
+
+
+def polar(A: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The closest rotations to (..., 3, 3) matrices, and how far each was from one
+    (max ``|s - 1|`` over its singular values)."""
+    U, S, Vt = np.linalg.svd(A)
+    det = np.sign(np.linalg.det(U @ Vt))
+    det = np.where(det == 0, 1.0, det)
+    U = U.copy()
+    U[..., :, 2] *= det[..., None]
+    return U @ Vt, np.abs(S - 1).max(axis=-1)
+
+
+class Scene:
+    """The checked node hierarchy of a :class:`GltfFile`.
+
+    Attributes
+    ----------
+    f : GltfFile
+    n : int
+        Number of nodes.
+    parent : (n,) int
+        Parent node, -1 for a root.
+    order : (n,) int
+        Every node after its parent.
+    T, Q, S : (n, 3), (n, 4), (n, 3) float
+        Rest translation, rotation ``(w, x, y, z)`` (unit) and scale of each node.
+    matrix : (n,) bool
+        True where the node gives a ``matrix`` (split into T, Q, S for animation).
+    local : (n, 4, 4) float
+        Rest local matrices (a given matrix as it is).
+    names : list of str or None
+    """
+
+    def __init__(self, f: GltfFile):
+        self.f = f
+        nodes = f.items("nodes")
+        n = len(nodes)
+        self.n = n
+        parent = np.full(n, -1, dtype=np.int64)
+        T = np.zeros((n, 3))
+        Q = np.tile([1.0, 0, 0, 0], (n, 1))
+        S = np.ones((n, 3))
+        local = np.tile(np.eye(4), (n, 1, 1))
+        is_matrix = np.zeros(n, dtype=bool)
+        names: list[str | None] = []
+        for k in range(n):
+            node = f.item("nodes", k, f"node {k}")
+            where = f"nodes[{k}]"
+            nm = f.get(node, "name", "string", where, None)
+            names.append(nm)
+            for c in f.get(node, "children", "array", where, []):
+                if isinstance(c, bool) or not isinstance(c, int) or not 0 <= c < n or c == k:
+                    raise f.error(f"{where}.children: node indices in 0..{n - 1} other than "
+                                  f"{k}", repr(c))
+                if parent[c] >= 0:
+                    raise f.error("a tree of nodes (each node the child of one node at most)",
+                                  f"node {c} a child of nodes {int(parent[c])} and {k}")
+                parent[c] = k
+            if "matrix" in node:
+                m = np.array(f.numbers(node, "matrix", 16, where, ()), float)
+                if not np.isfinite(m).all():
+                    raise f.error(f"{where}.matrix: finite numbers", "NaN or infinity")
+                M = m.reshape(4, 4).T                      # column-major
+                local[k] = M
+                is_matrix[k] = True
+                T[k], Q[k], S[k] = self._split(M, where)
+            else:
+                t = f.numbers(node, "translation", 3, where, (0, 0, 0))
+                r = f.numbers(node, "rotation", 4, where, (0, 0, 0, 1))
+                s = f.numbers(node, "scale", 3, where, (1, 1, 1))
+                q = np.array([r[3], r[0], r[1], r[2]])
+                nq = np.linalg.norm(q)
+                if not (np.isfinite(q).all() and np.isfinite(t).all() and np.isfinite(s).all()
+                        and nq > 0):
+                    raise f.error(f"{where}: a finite translation, a non-zero rotation and a "
+                                  "finite scale", f"{t}, {r}, {s}")
+                T[k], Q[k], S[k] = t, q / nq, s
+                local[k] = trs_matrices(T[k], Q[k], S[k])
+        # a cycle never reaches a root: walk up from every node, at most n steps
+        depth = np.full(n, -1, dtype=np.int64)
+        for k in range(n):
+            chain = []
+            x = k
+            while x >= 0 and depth[x] < 0:
+                chain.append(x)
+                if len(chain) > n:
+                    # the loop, parent before child, from its smallest node
+                    loop = chain[chain.index(x):-1][::-1]
+                    m = loop.index(min(loop))
+                    loop = loop[m:] + loop[:m]
+                    shown = " -> ".join(map(str, loop[:8])) + (" ..." if len(loop) > 8 else "")
+                    raise f.error("a tree of nodes (no cycles)",
+                                  f"a cycle through nodes {shown} -> {loop[0]}")
+                x = int(parent[x])
+            base = -1 if x < 0 else depth[x]
+            for m, c in enumerate(reversed(chain)):
+                depth[c] = base + 1 + m
+        self.parent = parent
+        self.depth = depth
+        self.order = np.argsort(depth, kind="stable")
+        self.T, self.Q, self.S, self.local, self.matrix = T, Q, S, local, is_matrix
+        self.names = names
+        self._world = None
+
+    def _split(self, M: np.ndarray, where: str):
+        """Translation, rotation and scale of a matrix ``T R S`` (None where it has
+        shear or a projective row: such a node can still be drawn, not animated)."""
+        t = M[:3, 3].copy()
+        A = M[:3, :3]
+        s = np.linalg.norm(A, axis=0)
+        if np.any(s == 0):
+            return t, np.array([1.0, 0, 0, 0]), s
+        R = A / s
+        if np.linalg.det(R) < 0:
+            s[0], R[:, 0] = -s[0], -R[:, 0]
+        return t, tf.matrix_to_quat(polar(R)[0]), s
+
+    # ------------------------------------------------------------------ hierarchy
+    def world(self) -> np.ndarray:
+        """(n, 4, 4) rest world matrices."""
+        if self._world is None:
+            G = self.local.copy()
+            for k in self.order:
+                p = self.parent[k]
+                if p >= 0:
+                    G[k] = G[p] @ self.local[k]
+            self._world = G
+        return self._world
+
+    def ancestors(self, k: int) -> list[int]:
+        """Nodes above ``k``, nearest first."""
+        out = []
+        p = int(self.parent[k])
+        while p >= 0:
+            out.append(p)
+            p = int(self.parent[p])
+        return out
+
+    def top(self, k: int) -> int:
+        """The root of the tree holding node ``k``."""
+        a = self.ancestors(k)
+        return a[-1] if a else k
+
+    def name(self, k: int) -> str:
+        """Node ``k``'s name, or ``node<k>``."""
+        return self.names[k] or f"node{k}"
+
+    # ------------------------------------------------------------------ skins
+    def skinned_nodes(self) -> list[tuple[int, int, int]]:
+        """(node, mesh, skin) of every node with both a mesh and a skin, in node order."""
+        f = self.f
+        out = []
+        nm, ns = len(f.items("meshes")), len(f.items("skins"))
+        for k in range(self.n):
+            node = f.items("nodes")[k]
+            mesh = f.get(node, "mesh", "index", f"nodes[{k}]", None, below=nm)
+            skin = f.get(node, "skin", "index", f"nodes[{k}]", None, below=ns)
+            if mesh is not None and skin is not None:
+                out.append((k, mesh, skin))
+        return out
+
+    def skin_joints(self, s: int) -> list[int]:
+        """The joint nodes of skin ``s``, checked: distinct nodes with a common root."""
+        f = self.f
+        key = ("skin joints", s)
+        if key in f.cache:
+            return f.cache[key]
+        skin = f.item("skins", s, f"skin {s}")
+        where = f"skins[{s}]"
+        joints = f.get(skin, "joints", "array", where)
+        if not joints:
+            raise f.error(f"{where}.joints: at least one joint node", "none")
+        bad = [j for j in joints if isinstance(j, bool) or not isinstance(j, int)
+               or not 0 <= j < self.n]
+        if bad:
+            raise f.error(f"{where}.joints: joint node indices in 0..{self.n - 1}",
+                          repr(bad[0]))
+        if len(set(joints)) != len(joints):
+            dup = next(j for j in joints if joints.count(j) > 1)
+            raise f.error(f"{where}.joints: distinct joint nodes (a tree of joints)",
+                          f"node {dup} listed {joints.count(dup)} times")
+        tops = sorted({self.top(j) for j in joints})
+        if len(tops) > 1:
+            raise f.error(f"{where}.joints: joints under one common root node (a tree)",
+                          f"joints in {len(tops)} separate node trees (under nodes "
+                          f"{', '.join(map(str, tops[:4]))})")
+        f.cache[key] = joints
+        return joints
+
+    def inverse_binds(self, s: int) -> np.ndarray:
+        """(j, 4, 4) inverse bind matrices of skin ``s`` (identity when not given)."""
+        f = self.f
+        joints = self.skin_joints(s)
+        skin = f.item("skins", s, f"skin {s}")
+        i = f.get(skin, "inverseBindMatrices", "index", f"skins[{s}]", None)
+        if i is None:
+            return np.tile(np.eye(4), (len(joints), 1, 1))
+        m = read_accessor(f, i, f"skin {s} inverseBindMatrices", types=("MAT4",))
+        if len(m) != len(joints):
+            raise f.error(f"skins[{s}]: {len(joints)} inverse bind matrices (one per joint)",
+                          f"{len(m)}")
+        return m.reshape(-1, 4, 4).transpose(0, 2, 1)       # column-major
