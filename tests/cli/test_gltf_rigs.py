@@ -112,3 +112,28 @@ def test_view_opens_a_gltf_rig(character, tmp_path):
         assert info["names"] == ["Bone", "Bone.001"]
         code, _, _ = v.stop()
     assert code == 0
+
+
+def test_skin_and_mesh_pick_what_a_command_reads(shared_data, tmp_path, capsys):
+    # Xbot: two meshes on one skin; --mesh reads one alone, --skin the whole skeleton
+    xbot = shared_data / "characters" / "gltf" / "threejs_Xbot.glb"
+    pose = tmp_path / "p.json"
+    pose.write_text('{"rotate": {"mixamorig:Spine": {"axis": [1, 0, 0], "angle": 30}}}')
+    sizes = {}
+    for flags in ([], ["--mesh", "Beta_Joints"], ["--mesh", "68"], ["--skin", "Armature"]):
+        out = tmp_path / "u.npz"
+        assert main(["deform", str(xbot), "--pose", str(pose), "--method", "lbs", "-o",
+                     str(out), *flags]) == 0, capsys.readouterr().err
+        sizes[" ".join(flags)] = len(np.load(out)["U"])
+    assert sizes[""] == sizes["--skin Armature"] == 28374
+    assert sizes["--mesh Beta_Joints"] + sizes["--mesh 68"] == 28374
+    capsys.readouterr()
+    # a choice that matches nothing, and the options on a .npz rig: one line, status 2
+    npz = tmp_path / "rs.npz"
+    stbs.save_rig(npz, read_rig(shared_data / "gltf" / "RiggedSimple.glb"))
+    for argv in (["export", str(xbot), "--mesh", "nothing", "-o", str(tmp_path / "x.glb")],
+                 ["export", str(npz), "--skin", "0", "-o", str(tmp_path / "x.glb")]):
+        assert main(argv) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and err[0].startswith("stbs export: error:"), err
+    assert not (tmp_path / "x.glb").exists()

@@ -298,9 +298,10 @@ def test_meshes_sharing_a_skin_and_a_second_skin_over_the_same_joints(tmp_path):
     ref = Reference(path)
     for a in (1, 2):
         assert _err(rig, clips[list(clips)[a]], ref, a, _times(ref, a)) <= 1e-5
-    # mesh= and skin= pick
+    # mesh= reads one mesh alone; skin= the skeleton of a skin, every mesh bound to it
     assert len(read_gltf(path, mesh="body2")[0].V) == n
-    assert len(read_gltf(path, skin=1)[0].V) == n
+    assert len(read_gltf(path, mesh="body3")[0].V) == n
+    assert len(read_gltf(path, skin=1)[0].V) == 3 * n
 
 
 def test_two_skeletons_read_the_first_with_a_warning(tmp_path):

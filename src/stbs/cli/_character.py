@@ -11,12 +11,11 @@ def add_character_options(p: argparse.ArgumentParser, *, mesh: bool = True) -> N
     """Add ``--skin`` (and ``--mesh``) to a command that reads a rig file."""
     g = p.add_argument_group("character files with several skeletons (glTF, FBX)")
     g.add_argument("--skin", metavar="SKIN",
-                   help="read the skeleton of this skin (index or name; default: the first "
-                        "skinned mesh's, with every mesh bound to it)")
+                   help="read the skeleton of this skin (index or name), with every mesh "
+                        "bound to it (default: the first skinned mesh's skeleton)")
     if mesh:
         g.add_argument("--mesh", metavar="MESH",
-                       help="read the skeleton of this skinned mesh (node or mesh, index or "
-                            "name)")
+                       help="read this skinned mesh alone (node or mesh, index or name)")
 
 
 def character_options(args: argparse.Namespace, mesh: str | None = None) -> dict:

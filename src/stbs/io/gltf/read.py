@@ -5,8 +5,8 @@ How a glTF character becomes a rig
 - **Which meshes.** Every node with a mesh and a skin whose joints belong to one
   skeleton (skins sharing joints, or one's joints below another's, are one skeleton):
   several meshes sharing a skin, and several skins over one joint hierarchy, are read
-  together. ``skin=`` and ``mesh=`` pick others when a file holds several skeletons
-  (the first is read by default, with a warning listing the rest).
+  together. ``skin=`` picks another skeleton when a file holds several (the first is
+  read by default, with a warning listing the rest); ``mesh=`` reads one mesh alone.
 - ``V`` is the POSITION data of those meshes' primitives, concatenated in node and
   primitive order (with the mesh's default morph weights applied, if any), ``F`` their
   triangles (strips and fans become triangles; points and lines are skipped with a
@@ -122,16 +122,17 @@ def _select(f: GltfFile, scene: Scene, skin, mesh) -> list[tuple[int, int, int]]
     def named(x, i):
         return x[i].get("name") if isinstance(x[i], dict) else None
 
+    group = _skeletons(scene, sorted({c[2] for c in skinned}))
     cands = skinned
-    if mesh is not None:
+    if mesh is not None:           # that mesh alone
         cands = [c for c in cands if mesh in (c[0], scene.names[c[0]], c[1], named(meshes, c[1]))]
-    if skin is not None:
-        cands = [c for c in cands if skin in (c[2], named(skins, c[2]))]
+    if skin is not None:           # the skeleton of that skin, every mesh bound to it
+        picked = {group[c[2]] for c in skinned if skin in (c[2], named(skins, c[2]))}
+        cands = [c for c in cands if group[c[2]] in picked]
     if not cands:
         raise ValueError(f"{str(f.path)!r}: no skinned mesh matches mesh={mesh!r}, "
                          f"skin={skin!r}; there are "
                          f"{'; '.join(_label(scene, *c) for c in skinned)}")
-    group = _skeletons(scene, sorted({c[2] for c in skinned}))
     first = group[cands[0][2]]
     chosen = [c for c in cands if group[c[2]] == first]
     others = [c for c in cands if group[c[2]] != first]
@@ -393,10 +394,12 @@ def read_gltf(path: str | os.PathLike, *, skin: int | str | None = None,
     ----------
     path : str or os.PathLike
         ``.gltf`` (buffers in files beside it or in ``data:`` URIs) or ``.glb``.
-    skin, mesh : int or str, optional
-        Which skeleton to read when the file holds several: the one of a skin (index or
-        name), or of a mesh node (node index or name, or mesh index or name). Default:
-        the first skinned mesh's (with a warning listing the others).
+    skin : int or str, optional
+        Read the skeleton of this skin (index or name), with every skinned mesh bound to
+        it. Default: the first skinned mesh's skeleton (with a warning listing the
+        others when the file holds several).
+    mesh : int or str, optional
+        Read this skinned mesh alone (node index or name, or mesh index or name).
 
     Returns
     -------
