@@ -44,6 +44,8 @@ class Motion:
     end_site : (j,) bool, optional
         Joints that only mark where a chain ends (BVH ``End Site``): no channels, a
         rotation that is always the identity. Default: none.
+    source : str, optional
+        Where the motion comes from (a file name), for messages; kept as ``source``.
 
     Raises
     ------
@@ -67,7 +69,8 @@ class Motion:
     """
 
     def __init__(self, names: Sequence[str], parents, offsets, *, rotations,
-                 translations=None, frame_time: float, end_site=None):
+                 translations=None, frame_time: float, end_site=None,
+                 source: str | None = None):
         names = [str(s) for s in names]
         j = len(names)
         if len(set(names)) != j:
@@ -106,6 +109,7 @@ class Motion:
         self.translations = T
         self.frame_time = dt
         self.end_site = es
+        self.source = None if source is None else str(source)
 
     # ------------------------------------------------------------------ sizes
     @property
@@ -196,12 +200,16 @@ class Motion:
         files' ``LHipJoint``) share one skeleton joint, so zero-length bones never
         arise. A bone is named after the joint that turns it; when that joint turns
         several bones, the first keeps the name and the others are named
-        ``"PARENT>CHILD"``.
+        ``"PARENT>CHILD"``. The bones form one hierarchy, as the joints do: a bone's
+        parent is the bone ending where it starts; of the bones starting at a root,
+        the one heading the most joints is the root bone and the others hang from its
+        start (offset children, DESIGN §2), so that forward kinematics poses the whole
+        hierarchy as the motion does.
 
         Returns
         -------
         sk : Skeleton
-            Joints at :meth:`rest_positions` (merged where they coincide).
+            Joints at :meth:`rest_positions` (merged where they coincide), parents ``P``.
         drive : (b,) int
             For each bone, the motion joint whose rotation turns it.
         end : (b,) int
@@ -215,18 +223,22 @@ class Motion:
         from .skeleton import Skeleton
 
         X = self.rest_positions()
-        joint_of = np.empty(self.n_joints, dtype=np.int64)      # motion joint -> skeleton joint
+        j = self.n_joints
+        moved = np.array([p >= 0 and np.linalg.norm(self.offsets[k]) > tol
+                          for k, p in enumerate(self.parents)], dtype=bool)
+        joint_of = np.empty(j, dtype=np.int64)      # motion joint -> skeleton joint
+        owner = np.empty(j, dtype=np.int64)         # the joint that placed that one
         C: list[np.ndarray] = []
         for k, p in enumerate(self.parents):
-            if p >= 0 and np.linalg.norm(self.offsets[k]) <= tol:
-                joint_of[k] = joint_of[p]
+            if p >= 0 and not moved[k]:
+                joint_of[k], owner[k] = joint_of[p], owner[p]
             else:
-                joint_of[k] = len(C)
+                joint_of[k], owner[k] = len(C), k
                 C.append(X[k])
         BE, names, drive, end = [], [], [], []
         taken: set[str] = set()
         for k, p in enumerate(self.parents):
-            if p < 0 or np.linalg.norm(self.offsets[k]) <= tol:
+            if not moved[k]:
                 continue
             name = self.names[p]
             if name in taken:
@@ -238,8 +250,28 @@ class Motion:
             end.append(k)
         if not BE:
             raise ValueError("the motion has no bone: every joint's offset is zero")
-        sk = Skeleton(np.array(C), np.array(BE), names=names)
-        return sk, np.array(drive, dtype=np.int64), np.array(end, dtype=np.int64)
+        end_a = np.array(end, dtype=np.int64)
+        bone_to = {int(e): i for i, e in enumerate(end_a)}     # bone ending at joint e
+        size = np.zeros(j, dtype=np.int64)                     # joints below each joint
+        for k in range(j - 1, -1, -1):
+            if self.parents[k] >= 0:
+                size[self.parents[k]] += size[k] + 1
+        P = np.full(len(BE), -1, dtype=np.int64)
+        first: dict[int, int] = {}
+        for i, p in enumerate(drive):
+            q = int(owner[p])                   # the joint whose offset placed p
+            if q in bone_to:
+                P[i] = bone_to[q]
+            else:                               # a root's bones: one is the root bone
+                first.setdefault(q, -1)
+        for q in first:
+            at = [i for i in range(len(BE)) if P[i] < 0 and owner[drive[i]] == q]
+            main = max(at, key=lambda i: (size[end_a[i]], -i))
+            for i in at:
+                if i != main:
+                    P[i] = main
+        sk = Skeleton(np.array(C), np.array(BE), names=names, P=P)
+        return sk, np.array(drive, dtype=np.int64), end_a
 
     def __repr__(self) -> str:
         return (f"Motion({self.n_joints - int(self.end_site.sum())} joints + "

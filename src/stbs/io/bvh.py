@@ -341,7 +341,7 @@ def read_bvh(path: str | os.PathLike) -> Motion:
         if Rk is not None:
             R[:, k] = Rk
     m = Motion(names, parents, O, rotations=R, translations=T, frame_time=dt,
-               end_site=end_site)
+               end_site=end_site, source=str(p))
     m.channels = data
     m.channel_names = channel_names
     return m
