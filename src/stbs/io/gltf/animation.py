@@ -306,12 +306,15 @@ def decode_clip(f: GltfFile, scene: Scene, J: Joints, a: int, name: str) -> Clip
                         f" (by up to {d:.3g})" for node, d in loud[:6])
         warnings.warn(f"{str(f.path)!r}: {label} changes the scale of {who}; bones are "
                       "rigid, so that scaling is dropped (the children still move as in "
-                      "the file)", UserWarning, stacklevel=4)
+                      "the file)", UserWarning, stacklevel=3)
 
     # ---- the exact values at the union times: the node hierarchy, evaluated
     order = [int(x) for x in scene.order if int(x) in relevant]
-    f.reserve(k * len(order) * 16 * 8 * 2 + k * b * 200, f"{label}: {k} keys over "
-              f"{len(order)} nodes")
+    # the clip keeps about 200 bytes per key and bone; the hierarchy's matrices and the
+    # skin matrices live while it is made
+    f.reserve(k * b * 200, f"{label}: {k} keys over {b} bones")
+    f.reserve(k * (len(order) + 3 * b) * 16 * 8, f"{label}: {k} keys over {len(order)} nodes",
+              keep=False)
     Nloc = {}
     for node in order:
         if not any((node, p) in moving for p in _PATHS):
@@ -339,7 +342,7 @@ def decode_clip(f: GltfFile, scene: Scene, J: Joints, a: int, name: str) -> Clip
         kk, i = np.unravel_index(int(np.argmax(dev)), dev.shape)
         warnings.warn(f"{str(f.path)!r}: {label} scales or shears joint {sk.names[i]!r} (its "
                       f"skin matrix is up to {worst:.3g} off rigid at {U[kk]:g} s); bones are "
-                      "rigid, so that is dropped", UserWarning, stacklevel=4)
+                      "rigid, so that is dropped", UserWarning, stacklevel=3)
 
     # ---- each bone's channels: analytic where the structure allows, checked
     quats = tf.matrix_to_quat(Lg)

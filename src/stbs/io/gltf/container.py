@@ -227,8 +227,9 @@ class GltfFile:
         """Bytes of arrays this file may still have decoded (see the module docs)."""
         return BUDGET_BASE + BUDGET_FACTOR * (self.size + self._opened) - self._used
 
-    def reserve(self, nbytes: int, what: str) -> None:
-        """Count ``nbytes`` of arrays about to be made against the budget."""
+    def reserve(self, nbytes: int, what: str, *, keep: bool = True) -> None:
+        """Count ``nbytes`` of arrays about to be made against the budget; ``keep=False``
+        for arrays that live only while one call works (checked, not counted)."""
         nbytes = int(nbytes)
         if nbytes > self.budget:
             limit = BUDGET_BASE + BUDGET_FACTOR * (self.size + self._opened)
@@ -237,7 +238,8 @@ class GltfFile:
                 f"{self.size + self._opened} bytes ({BUDGET_BASE // 2**20} MiB + "
                 f"{BUDGET_FACTOR} times its size)",
                 f"{what} needing {nbytes} bytes more (a hostile or damaged file?)")
-        self._used += nbytes
+        if keep:
+            self._used += nbytes
 
     # ------------------------------------------------------------------ buffers
     def buffer(self, k: int) -> memoryview:

@@ -141,7 +141,7 @@ def _select(f: GltfFile, scene: Scene, skin, mesh) -> list[tuple[int, int, int]]
                       f" skeletons; reading the one of {_label(scene, *chosen[0])} (pick "
                       f"another with skin= or mesh=; the others: "
                       f"{'; '.join(_label(scene, *c) for c in others[:6])})",
-                      UserWarning, stacklevel=3)
+                      UserWarning, stacklevel=4)
     return chosen
 
 
