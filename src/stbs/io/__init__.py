@@ -25,7 +25,7 @@ function               formats
 :func:`read_clip`      .json clip: keyed poses (see :mod:`stbs.io.clip`)
 :func:`write_clip`     .json clip
 :func:`read_bvh`       .bvh motion capture -> :class:`stbs.Motion`
-:func:`read_gltf`      .gltf .glb skinned mesh and animations -> rig, clips
+:func:`read_gltf`      .gltf .glb skinned meshes of a skeleton, animations -> rig, clips
 :func:`read_fbx`       .fbx (binary, ASCII) skinned meshes and animation stacks -> rig, clips
 :func:`write_gltf`     .gltf .glb skin (+ endpoint weights), clip, baked morph targets
 :func:`write_usd`      .usda .usdc .usd: UsdSkel rig, clip, baked points cache

@@ -26,9 +26,11 @@ time is exact with the derivative there as both tangents (and its value there, o
 the unit sphere: the clip normalises after interpolating, as glTF does).
 
 Where that structure does not hold -- two animated rotations (or translations) in one
-bone's chain, an animated scale above it, a non-uniform scale that shears -- the bone
-takes the exact skinning-matrix values at the union times and slerps (lerps) between
-them: exact at every key time of the animation, an approximation between keys. Each
+bone's chain, a turning node between a bone and the joint it hangs from (or above a
+root: its start moves on an arc), an animated scale above it, a non-uniform scale that
+shears -- the channel takes the exact skinning-matrix values at the union times and
+slerps (lerps) between them: exact at every key time of the animation, an
+approximation between keys. Each
 analytic channel is checked against those exact values at the union times before it
 is used. A joint whose scale changes over time cannot be a rigid bone: its own
 scaling is dropped with a warning naming it (its children still move as in the
