@@ -10,6 +10,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from gltf_files import Reference
 
 import stbs
 from stbs import transforms as tf
@@ -189,6 +190,12 @@ def test_a_hierarchy_with_offset_children_round_trips_key_for_key(tmp_path, tree
     R1, O1, _, _ = played.arrays(t)
     np.testing.assert_allclose(R1, R0, atol=2e-6)
     np.testing.assert_allclose(O1, O0, atol=2e-6)
+    # and as the glTF formula draws the file (an independent reader of its bytes)
+    ref = Reference(path)
+    dfm = stbs.Deformer(back.V, sk, back.W, method="lbs")
+    for tt in t[::4]:
+        want = ref.skin_at(0, float(tt))
+        assert np.abs(dfm(clip.pose(float(tt))) - want).max() <= 1e-5 * _diag(want)
     report = validate(path)[0]
     assert (report["errors"], report["warnings"]) == (0, 0), report
 
