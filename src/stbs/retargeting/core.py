@@ -121,11 +121,13 @@ def _auto_mapping(tgt: _Side, src: _Side, motion: Motion) -> np.ndarray:
     for k in joints:
         if sb.role[k] is None:
             keys.setdefault(parse_name(motion.names[k]).key, k)
-    for i in range(b):
+    for i in np.argsort(tgt.tree.depth[:b], kind="stable"):
         if out[i] < 0 and tb.role[i] is None:
             p = parse_name(base[i])
-            if p.words:
-                out[i] = keys.get(p.key, -1)
+            k = keys.get(p.key, -1) if p.words else -1
+            if k >= 0 and k not in used:        # one bone each: Thumb2 follows Thumb
+                out[i] = k
+                used.add(k)
     return out
 
 
