@@ -6,11 +6,12 @@ from .core import (
     MOTION_EXTENSIONS,
     Baked,
     bake,
+    clip_frames,
     frame_times,
     load_motion,
     output_kind,
     write_frames,
 )
 
-__all__ = ["load_motion", "frame_times", "bake", "Baked", "write_frames", "output_kind",
-           "MOTION_EXTENSIONS", "MESH_FOLDER_FORMATS"]
+__all__ = ["load_motion", "frame_times", "clip_frames", "bake", "Baked", "write_frames",
+           "output_kind", "MOTION_EXTENSIONS", "MESH_FOLDER_FORMATS"]

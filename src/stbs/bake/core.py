@@ -25,8 +25,8 @@ from ..retargeting import retarget
 from ..rig import Rig
 from ..skinning import METHODS, Deformer
 
-__all__ = ["load_motion", "frame_times", "bake", "Baked", "MOTION_EXTENSIONS",
-           "MESH_FOLDER_FORMATS", "write_frames", "output_kind"]
+__all__ = ["load_motion", "frame_times", "clip_frames", "bake", "Baked",
+           "MOTION_EXTENSIONS", "MESH_FOLDER_FORMATS", "write_frames", "output_kind"]
 
 MOTION_EXTENSIONS = (".bvh", ".gltf", ".glb", ".fbx", ".json")
 MESH_FOLDER_FORMATS = (".obj", ".ply", ".off")
@@ -113,6 +113,18 @@ def frame_times(clip: Clip, *, fps: float | None = None, frames: str | None = No
     if out.size == 0:
         raise ValueError(f"frames {frames!r} selects none of the clip's {len(times)} frames")
     return out
+
+
+def clip_frames(clip: Clip, *, fps: float | None = None, frames: str | None = None) -> Clip:
+    """The clip keyed at the frames :func:`bake` would bake (``fps``, ``frames`` as in
+    :func:`frame_times`), interpolated as the clip plays; the clip itself when neither
+    is given."""
+    if fps is None and frames is None:
+        return clip
+    times = frame_times(clip, fps=fps, frames=frames)
+    L, sigma, theta, D = clip.local(times)
+    return Clip.from_local(clip.skeleton, times, rotations=L, stretch=sigma, twist=theta,
+                           offsets=D, fps=clip.fps if fps is None else fps)
 
 
 def output_kind(out: str | os.PathLike) -> str:

@@ -23,7 +23,16 @@ skeleton (the character's own file: CHAR.fbx --motion CHAR.fbx).
 Output (-o): a .npz (U (frames, n, d) float32, times, F/T, method), a .glb/.gltf
 whose morph targets play the baked frames in any glTF viewer, or a folder (a path
 ending in /, or without extension) of one mesh per frame (--mesh-format). Written
-atomically; a progress bar and the frames per second go to stderr.
+atomically; a progress bar and the frames per second go to stderr. A clip .json
+instead writes the motion on the rig, not baked (stbs.io.write_clip): a capture
+retargeted once, to open with stbs view RIG --motion CLIP.json or to bake later.
+
+A capture is retargeted by body part: the rig's and the capture's joints are read
+as pelvis, spine, neck, head, collars, arms and legs from their names (CMU, Mixamo,
+Blender, Unreal, Bandai Namco ... conventions) or from the skeleton's shape, rest
+postures are matched (a T-pose capture on an A-pose character), and the root's
+travel is scaled by the hip heights. --mapping MAP.json ({"rig bone": "capture
+joint"}) names every bone's joint instead.
 
 With --manifest BATCH.json, bake many rigs × motions on Dask: the manifest is a
 JSON list of {"rig", "motion", "output", "method"} (paths relative to it; also
@@ -34,6 +43,7 @@ in chunks, and a re-run skips what is finished (see docs/pipelines.md)."""
 EPILOG = f"""examples:
   {EXAMPLE}
   stbs animate character.glb --motion 131_01.bvh --frames 0:600:2 -o run.npz
+  stbs animate character.glb --motion 131_01.bvh --mapping map.json -o walk.json
   stbs animate arm.npz --motion wave.json --method stbs-lbs -o frames/
   stbs animate --manifest batch.json --workers 2"""
 
@@ -42,7 +52,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("rig", nargs="?", metavar="RIG", help="rig: .npz, .gltf, .glb or .fbx")
     p.add_argument("--motion", metavar="FILE",
                    help="motion: .bvh, .gltf, .glb, .fbx or clip .json")
-    p.add_argument("-o", "--output", metavar="OUT", help="output: .npz, .glb, .gltf or FOLDER/")
+    p.add_argument("-o", "--output", metavar="OUT",
+                   help="output: .npz, .glb, .gltf or FOLDER/; or a clip .json (not baked)")
     p.add_argument("--method", choices=METHODS, default="stbs-dqs",
                    help="skinning method (default: %(default)s)")
     p.add_argument("--frames", metavar="A:B:STEP", help="bake these of the sampled frames")
@@ -50,7 +61,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--animation", metavar="NAME",
                    help="glTF or FBX motion: the animation (stack) to bake")
     p.add_argument("--mapping", metavar="MAP.json",
-                   help="BVH motion: {rig bone: motion joint} for other naming")
+                   help="BVH motion: {rig bone: capture joint} for every bone (default: by "
+                        "body part, from the names or the skeletons' shapes)")
     p.add_argument("--twist", choices=("spread", "joint"), default="spread",
                    help="BVH motion: spread each joint's twist along its bone, or keep it "
                         "at the joint (default: %(default)s)")
@@ -123,14 +135,25 @@ def run(args: argparse.Namespace) -> int:
         raise CommandError(f"give {', '.join(missing)} (or --manifest BATCH.json)")
     if args.workers is not None or args.scheduler is not None:
         raise CommandError("--workers and --scheduler apply to --manifest")
-    from ..bake import bake, load_motion, output_kind
-    from ..io import read_rig
+    if args.mapping is not None and not args.motion.lower().endswith(".bvh"):
+        raise CommandError(f"--mapping applies to a .bvh motion (the capture's joints it "
+                           f"maps), not {args.motion!r}")
+    from ..bake import bake, clip_frames, load_motion, output_kind
+    from ..io import read_rig, write_clip
     from ._character import character_options
 
-    output_kind(args.output)
+    as_clip = args.output.lower().endswith(".json")
+    if not as_clip:
+        output_kind(args.output)
     rig = read_rig(args.rig, **character_options(args))
     clip = load_motion(args.motion, rig, mapping=args.mapping, twist=args.twist,
                        stretch=args.stretch, animation=args.animation)
+    if as_clip:
+        clip = clip_frames(clip, fps=args.fps, frames=args.frames)
+        write_clip(args.output, clip)
+        print(f"wrote {args.output}: a clip of {len(clip)} keys over {clip.duration:.2f} s "
+              f"({clip.fps:g} fps) of the rig's {rig.skeleton.n_bones} bones")
+        return 0
     done = bake(rig, clip, args.output, method=args.method, fps=args.fps, frames=args.frames,
                 mesh_format=args.mesh_format, progress=_bar(f"bake ({args.method})"))
     print(f"baked {done.frames} frames in {done.total_s:.2f} s ({done.fps:.1f} frames/s; "
