@@ -45,6 +45,13 @@ RIGIFY = {"pelvis": "DEF-hips", "spine1": "DEF-spine", "spine2": "DEF-spine.001"
           "l_collar": "DEF-shoulder.L", "l_upperarm": "DEF-upper_arm.L",
           "l_forearm": "DEF-forearm.L", "l_hand": "DEF-hand.L", "l_thigh": "DEF-thigh.L",
           "l_shin": "DEF-shin.L", "l_foot": "DEF-foot.L", "l_toe": "DEF-toe.L"}
+LAFAN = {**CMU, "spine1": "Spine", "spine2": "Spine1", "chest": "Spine2", "neck": "Neck",
+         "l_toe": "LeftToe"}
+UNITY = {"pelvis": "Hips", "spine1": "Spine", "spine2": "Chest", "chest": "UpperChest",
+         "neck": "Neck", "head": "Head", "l_collar": "LeftShoulder",
+         "l_upperarm": "LeftUpperArm", "l_forearm": "LeftLowerArm", "l_hand": "LeftHand",
+         "l_thigh": "LeftUpperLeg", "l_shin": "LeftLowerLeg", "l_foot": "LeftFoot",
+         "l_toe": "LeftToes"}
 # games105-like: a clavicle before "Shoulder", which is then the upper arm
 GAMES105 = {"pelvis": "RootJoint", "spine1": "pelvis_lowerback", "spine2": "lowerback_mid",
             "chest": "lowerback_torso", "neck": "torso_neck", "head": "torso_head",

@@ -74,7 +74,8 @@ for _k, _v in list(EXPECT.items()):
         EXPECT["r_" + _k[2:]] = "r" + _v[1:]
 
 
-@pytest.mark.parametrize("scheme", ["CMU", "MIXAMO", "UNREAL", "RIGIFY", "GAMES105", "BIPED"])
+@pytest.mark.parametrize("scheme", ["CMU", "MIXAMO", "LAFAN", "UNITY", "UNREAL", "RIGIFY",
+                                    "GAMES105", "BIPED"])
 def test_every_convention_reads_as_the_same_body(scheme):
     names = getattr(hu, scheme)
     sk, parts = hu.skeleton(names)

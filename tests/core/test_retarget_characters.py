@@ -125,6 +125,19 @@ def test_each_part_is_driven_by_the_captures_joint_of_that_part(characters, capt
         assert "LeftShoulder" not in {got[BONES[character]["l_upperarm"]]}
 
 
+def test_the_older_cmu_conversion_drives_the_upper_arm_by_its_shoulder(shared_data,
+                                                                      characters):
+    """bvh11's CMU files put LeftCollar before LeftShoulder: the shoulder is the upper arm."""
+    m = stbs.read_bvh(shared_data / "bvh11-cmu" / "131_01.bvh")
+    rig, _ = characters("threejs_Xbot")
+    got = joint_map(m, rig)
+    assert got["mixamorig:LeftShoulder"] == "LeftCollar"
+    assert got["mixamorig:LeftArm"] == "LeftShoulder"
+    assert got["mixamorig:LeftForeArm"] == "LeftElbow"
+    assert got["mixamorig:LeftHand"] == "lhand"             # not LeftWrist, at its place
+    assert got["mixamorig:LeftUpLeg"] == "LeftHip" and got["mixamorig:LeftLeg"] == "LeftKnee"
+
+
 def _edges(F):
     E = np.sort(np.vstack([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]]), axis=1)
     return np.unique(E, axis=0)
