@@ -11,6 +11,7 @@
 // is why: the page's own would have to follow every kind of channel the readers make.
 
 const DEFAULT_FPS = 30;
+const MIN_OPEN_FPS = 24;         // a clip opened from the server keyed less often plays at 30
 const INTERPOLATIONS = ["linear", "step"];
 const MAX_EXPORT_WIDTH = 480;    // px: GIF frames are scaled down to at most this width
 const MAX_EXPORT_FRAMES = 600;   // what POST /api/export takes
@@ -165,10 +166,11 @@ export class Timeline {
   }
 
   /** Open a clip the server holds (GET /api/clip's summary): its keys' times now, their
-   * poses when an edit needs them; shows its first key. */
+   * poses when an edit needs them; shows its first key. A clip keyed less often than
+   * MIN_OPEN_FPS a second (a file's few keys) plays at DEFAULT_FPS. */
   async open(summary) {
     this.stop();
-    this.fps = summary.fps;
+    this.fps = summary.fps >= MIN_OPEN_FPS ? summary.fps : DEFAULT_FPS;
     this.interpolation = summary.interpolation;
     this.list = summary.keys.map((t) => ({ time: t, pose: null }));
     this.source = summary.id;
@@ -335,9 +337,9 @@ export class Timeline {
         }
       }
       if (!asked && this.playing) {
-        let ahead = 0;
-        while (ahead < batch / 2 && cache.has((k + ahead) % n)) ahead++;
-        if (ahead < batch / 2 && (this.loop || k + ahead < n)) {
+        let ahead = 0;                      // keep a batch ahead of the frame shown
+        while (ahead < batch && cache.has((k + ahead) % n)) ahead++;
+        if (ahead < batch && ahead < n && (this.loop || k + ahead < n)) {
           fetchFrom((k + ahead) % n).catch((err) => { this.stop(); this.status(`timeline: ${err.message}`, true); });
         }
       }

@@ -15,9 +15,9 @@ Serve a rig to the browser viewer: start a server on 127.0.0.1 (only), print one
 the page's URL http://127.0.0.1:PORT/?token=TOKEN (a new token each run), open it in
 the browser (unless --no-browser), and serve until Ctrl-C.
 
-The rig is a .npz rig file, a character (glTF .gltf .glb, and the other character
-files stbs.io.read_rig reads; --skin and --mesh pick its skinned mesh where the reader
-takes them), a MESH and SKELETON rigged first as 'stbs rig' does
+The rig is a .npz rig file, a character (glTF .gltf .glb or FBX .fbx, every mesh
+skinned to its skeleton; --skin and --mesh pick another skeleton or one mesh), a MESH
+and SKELETON rigged first as 'stbs rig' does
 (--bone, --endpoint, --tets, --clip-skeleton, --tol; an outline MESH, .poly or an
 image, is traced and meshed with the defaults of 'stbs rig'), or a built-in example:
   arm      an arm with a mitten hand, three bones, bone heat + heat endpoint weights
@@ -29,10 +29,10 @@ another host name than 127.0.0.1:PORT or localhost:PORT is refused. The page sav
 poses and clips (keyed poses, played on its timeline) as JSON files and clips as
 animated GIFs into the rig's folder (the folder of --save-as when given) and the
 rig to --save-as (.npz, or .glb/.gltf: a glTF character's own file with the page's
-endpoint weights added), or beside the input: RIG.npz is saved as RIG-edited.npz
-(never over the input unless --save-as names it), CHAR.glb as CHAR-edited.glb, MESH
-as MESH.npz; for an --example only with --save-as. Files are written to a temporary
-file and renamed.
+endpoint weights, and its painted bone weights, added), or beside the input: RIG.npz
+is saved as RIG-edited.npz (never over the input unless --save-as names it), CHAR.glb
+as CHAR-edited.glb, MESH as MESH.npz; for an --example only with --save-as. Files are
+written to a temporary file and renamed.
 
 The page draws the rig lit and shaded with its skeleton, skins it in a vertex shader
 with any of the four methods (lbs, dqs, stbs-lbs, stbs-dqs), two of them side by side
@@ -58,6 +58,7 @@ EPILOG = f"""examples:
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
+    from ._character import add_character_options
     from .rig import BONE, ENDPOINT, add_clip_argument, add_tol_argument
 
     p.add_argument("input", nargs="?", metavar="RIG|MESH",
@@ -80,11 +81,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--mapping", default=None, metavar="MAP.json",
                    help="with --motion CAPTURE.bvh: which capture joint drives which rig "
                         "bone ({rig bone: joint name}, as stbs.retarget takes it)")
-    c = p.add_argument_group("a character file with several skinned meshes")
-    c.add_argument("--skin", default=None, metavar="SKIN",
-                   help="the skin to read (index or name), where the reader takes it")
-    c.add_argument("--mesh", default=None, metavar="MESH",
-                   help="the mesh node to read (index or name), where the reader takes it")
+    add_character_options(p)
     g = p.add_argument_group("rigging MESH SKELETON (as stbs rig)")
     g.add_argument("--bone", choices=BONE, default=None, help="bone weights (default: bbw)")
     g.add_argument("--endpoint", choices=ENDPOINT, default=None,
@@ -234,16 +231,6 @@ def _rig_from_files(args: argparse.Namespace):
                           tets=args.tets or "auto", tol=tol, clip_skeleton=args.clip_skeleton)
 
 
-def _character_options(args: argparse.Namespace) -> dict:
-    """--skin, --mesh as the character readers' keyword options (digits: an index)."""
-    out = {}
-    for key in ("skin", "mesh"):
-        v = getattr(args, key)
-        if v is not None:
-            out[key] = int(v) if v.isdigit() else v
-    return out
-
-
 def _read_character(path: str, options: dict):
     """(rig, clips) of a rig or character file; clips: its own animations by name."""
     from .. import io as sio
@@ -288,6 +275,7 @@ def _serve(args: argparse.Namespace, kind: str, save_as):
     from pathlib import Path
 
     from ..viewer import ViewerServer
+    from ._character import character_options
     from ._errors import CommandError
 
     extras: dict = {}
@@ -297,7 +285,7 @@ def _serve(args: argparse.Namespace, kind: str, save_as):
         rig, extras = _example(name)
     elif kind == "rig":
         name = Path(args.input).stem
-        rig, own = _read_character(args.input, _character_options(args))
+        rig, own = _read_character(args.input, character_options(args))
     else:
         name = Path(args.input).stem
         rig = _rig_from_files(args)

@@ -167,9 +167,10 @@ class ViewerServer:
         file whose folder exists, written by :func:`stbs.io.write_rig`); None: saving
         the rig is refused (409).
     rig_source : path, keyword-only
-        The glTF file the rig was read from: a glTF ``rig_target`` is then that file
-        with the rig's endpoint weights added (``write_rig(..., source=)``), keeping
-        its nodes, animations and materials; without it glTF is written afresh.
+        The glTF file the rig was read from: a glTF ``rig_target`` is then a copy of
+        that file with the rig's endpoint weights added, and its bone weights where
+        they were painted (``write_rig(..., source=)``), keeping its nodes, animations
+        and materials; without it glTF is written afresh.
     pose_folder : path, keyword-only
         The folder ``POST /api/save-pose`` writes pose files into; None: refused (409).
     name : str, keyword-only
@@ -441,17 +442,6 @@ class ViewerServer:
             raise _Refused(409, "saving the rig is off: start stbs view with --save-as PATH")
         with self._lock:
             rig = self.rig
-            if W is not None and self._keeps_skin():
-                # a character's file keeps its own skin weights (JOINTS_0/WEIGHTS_0): only
-                # the endpoint weights are added to it, so painted bone weights would be lost
-                old = self.payload.W
-                old = old.toarray() if hasattr(old, "toarray") else np.asarray(old)
-                if np.abs(np.asarray(W, dtype=np.float64) - old).max(initial=0) > 1e-6:
-                    raise _Refused(409, f"{self.rig_target.name}: the bone weights were "
-                                        "painted, and a glTF character keeps its own skin "
-                                        "weights (only endpoint weights are added to it); "
-                                        "save the rig as .npz (stbs view --save-as RIG.npz)")
-                W = None
             if W is not None or E is not None:
                 rig = self._with_weights(rig, W, E)
                 try:
@@ -470,12 +460,6 @@ class ViewerServer:
                 self.payload = payload
         return {"path": str(self.rig_target), "vertices": int(len(rig.V)),
                 "bones": int(rig.skeleton.n_bones), "has_E": rig.E is not None}
-
-    def _keeps_skin(self) -> bool:
-        """Whether the rig is saved into a copy of its glTF file (endpoint weights added)."""
-        return (self.rig_target is not None and self.rig_source is not None
-                and self.rig_target.suffix.lower() in (".glb", ".gltf")
-                and self.rig_source.suffix.lower() in (".glb", ".gltf"))
 
     def endpoint_column(self, obj: Any) -> tuple[int, str, np.ndarray]:
         """One bone's endpoint weights by a method of :func:`stbs.weights.endpoint_weights`.
