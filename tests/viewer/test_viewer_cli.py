@@ -164,7 +164,7 @@ def test_a_gltf_character_is_saved_as_gltf_with_its_painted_weights(shared_data,
 
     glb = shared_data / "characters" / "gltf" / "CesiumMan.glb"
     before = glb.read_bytes()
-    with View(glb, "--save-as", tmp_path / "painted.glb", cwd=tmp_path) as v:
+    with View(glb, "--skin", "0", "--save-as", tmp_path / "painted.glb", cwd=tmp_path) as v:
         info = json.loads(v.get("/api/rig")[1])
         n, b = info["vertices"], info["bones"]
         assert info["save"] == {"rig": True, "pose": True}

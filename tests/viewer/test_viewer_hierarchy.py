@@ -8,7 +8,8 @@ parent carries it in), and the skinned positions read back from the shader equal
 ``stbs.deform`` of the pose the library makes: ``stbs.forward_kinematics`` for a local
 rotation, the same world edit done in Python for the others. Then a glTF character
 with its own animation: seeks at keys and between show ``clip.pose(t)`` exactly, and
-neither seeking nor playing posts the clip.
+neither seeking nor playing posts the clip, and a turn of its most branching bone is
+forward kinematics.
 """
 
 from __future__ import annotations
@@ -247,6 +248,17 @@ def test_a_characters_animation_plays_exactly_without_posting_the_clip(browser, 
         # each seek and the pause posted {"time": t} and nothing else: no clip was sent
         assert posts and all(u.endswith("/pose") and n < 64 for _, u, n in posts), posts
         assert any(u.endswith("/frames") for m, u, _ in bodies if m == "GET")
+        # the character's own hierarchy: a turn of the bone with the most children
+        kids = np.bincount(sk.parents[sk.parents >= 0], minlength=sk.n_bones)
+        br = int(np.argmax(kids))
+        p.js("stbsViewer.setPose({})")
+        p.js("([b, a]) => stbsViewer.turnBone(b, a, 40)", [sk.names[br], [0.2, 1, 0.3]])
+        L = np.tile(np.eye(3), (sk.n_bones, 1, 1))
+        L[br] = axis_angle_to_matrix(np.array([0.2, 1, 0.3]), np.radians(40))
+        pose = stbs.forward_kinematics(sk, rotations=L)
+        assert _same(p.srv.pose, pose, 1e-9 * max(1.0, _diag(V)))
+        ref = stbs.deform(V, sk, pose, rig.W, E, method="stbs-dqs", max_influences=4)
+        assert np.abs(p.positions() - ref).max() / _diag(V) < POS_TOL
         assert p.errors == []
     finally:
         p.close()
