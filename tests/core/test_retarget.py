@@ -387,3 +387,28 @@ def test_the_no_joint_maps_error_names_the_file_on_one_line():
     assert msg.startswith("no joint of 'walk.bvh' maps to a bone of the rig; the rig's bones "
                           "are Bone, Bone.001; the capture's joints are Hips, ")
     assert "\n" not in msg and msg.endswith("give a mapping {rig bone: capture joint}")
+
+
+@pytest.mark.parametrize("seed", [0, 3, 6])
+@pytest.mark.parametrize("names", ["MIXAMO", None])
+def test_the_rigs_bone_order_does_not_matter(names, seed):
+    """The same rig with its bones listed in another order (named, or unnamed and read
+    from its shape) moves each bone alike."""
+    f = 8
+    t = np.linspace(0, 1, f)
+    rot = {"spine1": hu.rot([1, 0, 0], 20 * t, f), "spine2": hu.rot([0, 0, 1], 15 * t, f),
+           "chest": hu.rot([0, 1, 0], 30 * t, f), "l_upperarm": hu.rot([0, 0, 1], -50 * t, f),
+           "r_thigh": hu.rot([1, 0, 0], -40 * t, f)}
+    cap = hu.capture(hu.CMU, rotations=rot, pelvis=np.column_stack([t, 1 + 0 * t, 0 * t]))
+    scheme = getattr(hu, names) if names else None
+    a, pa = hu.skeleton(scheme)
+    b, pb = hu.skeleton(scheme, shuffle=seed)
+    if names is None:                # no telling names: joint_K in each order
+        a = stbs.Skeleton(a.C, a.BE, names=[f"joint_{k}" for k in range(a.n_bones)], P=a.parents)
+        b = stbs.Skeleton(b.C, b.BE, names=[f"joint_{k}" for k in range(b.n_bones)], P=b.parents)
+    Ra, Oa, _, _ = retarget(cap, a).arrays(cap.times)
+    Rb, Ob, _, _ = retarget(cap, b).arrays(cap.times)
+    ib = [pb.index(p) for p in pa]
+    np.testing.assert_allclose(Rb[:, ib], Ra, atol=1e-9)
+    np.testing.assert_allclose(Ob[:, ib], Oa, atol=1e-9)
+    assert np.abs(Ra[-1, pa.index("chest")] - np.eye(3)).max() > 0.1

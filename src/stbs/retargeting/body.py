@@ -29,7 +29,7 @@ length, so that chains of different counts can be matched by position.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -131,19 +131,22 @@ class Body:
     span : (n, 2) float
         For spine and neck joints, where the joint's bone lies along its group (0..1).
     how : str
-        ``"names"``, ``"structure"`` or ``"none"``.
+        ``"names"`` or ``"structure"``: what the roles were read from.
+    depth : (n,) int
+        Per joint, its number of ancestors.
     """
 
     role: list
     side: list
     span: np.ndarray
     how: str
-    extra: dict = field(default_factory=dict)
+    depth: np.ndarray
 
     def find(self, role: str, side: str = "") -> list[int]:
-        """Joints with this role and side, in hierarchy order (first: nearest the root)."""
-        return [k for k, (r, s) in enumerate(zip(self.role, self.side, strict=True))
-                if r == role and s == side]
+        """Joints with this role and side, nearest the root first."""
+        got = [k for k, (r, s) in enumerate(zip(self.role, self.side, strict=True))
+               if r == role and s == side]
+        return sorted(got, key=lambda k: (self.depth[k], k))
 
     def first(self, role: str, side: str = "") -> int:
         got = self.find(role, side)
@@ -254,14 +257,15 @@ def _spans(tree: Tree, chain: list[int], roles: dict[int, str]) -> dict[int, tup
     return out
 
 
-def _empty(n: int, how: str) -> Body:
-    return Body([None] * n, [""] * n, np.zeros((n, 2)), how)
+def _empty(tree: Tree, how: str) -> Body:
+    n = tree.n
+    return Body([None] * n, [""] * n, np.zeros((n, 2)), how, tree.depth)
 
 
 # ------------------------------------------------------------------ by names
 def _by_names(tree: Tree, names) -> Body:
     n = tree.n
-    body = _empty(n, "names")
+    body = _empty(tree, "names")
     parsed = [None if (nm is None or tree.tips[k]) else parse_name(nm)
               for k, nm in enumerate(names)]
     cand = [{} if p is None else candidates(p) for p in parsed]
@@ -393,7 +397,6 @@ def _unit(v):
 
 
 def _by_structure(tree: Tree) -> Body | None:
-    n = tree.n
     pairs = _pairs(tree)
     if len(pairs) < 2:
         return None
@@ -409,8 +412,7 @@ def _by_structure(tree: Tree) -> Body | None:
     up = _unit(tree.X[chest] - tree.X[pelvis])
     if up is None:
         return None
-    body = _empty(n, "structure")
-    body.extra["up"] = up
+    body = _empty(tree, "structure")
     tol = 1e-6 * tree.size
     body.role[pelvis] = "pelvis"
     for a in tree.ancestors(pelvis):
@@ -484,7 +486,6 @@ def _by_structure(tree: Tree) -> Body | None:
         if fwd is None:
             fwd = _unit(np.cross(up, [1.0, 0, 0])) or np.array([0, 0, 1.0])
     left = np.cross(up, fwd)
-    body.extra["left"] = left
 
     def sides(a, b):
         pa = [k for k in tree.path(a) if not tree.tips[k]]
