@@ -233,17 +233,35 @@ class Reference:
     """A glTF character as the specification draws it (see the comment above).
 
     ``skin_at(a, t)``: every skinned primitive's vertices, concatenated in node and
-    primitive order, skinned by animation ``a`` at time ``t``;
+    primitive order, skinned by animation ``a`` at time ``t``, then (``rigid=True``)
+    every primitive of the meshes without a skin on a joint node or below one, in node
+    and primitive order, drawn by their node's world matrix at ``t``;
     ``skin_bind(turn=None)``: the same in the bind pose (every joint at its inverse bind
-    matrix), with ``turn = (joint node, 3x3 rotation)`` applied in that node's frame.
+    matrix, the nodes below it at their rest transforms), with ``turn = (joint node,
+    3x3 rotation)`` applied in that node's frame.
     """
 
-    def __init__(self, path):
+    def __init__(self, path, *, rigid=True):
         self.doc, self.bufs = load_raw(path)
         d = self.doc
         self.nodes = d["nodes"]
         self.parent = {c: k for k, n in enumerate(self.nodes) for c in n.get("children", [])}
         self.skinned = [k for k, n in enumerate(self.nodes) if "mesh" in n and "skin" in n]
+        joints = {j for sk in d.get("skins", []) for j in sk["joints"]}
+        self.rigid = []           # (node, mesh, primitive, V, nearest joint at or above)
+        for k, n in enumerate(self.nodes):
+            if not rigid or "mesh" not in n or "skin" in n:
+                continue
+            up = k
+            while up is not None and up not in joints:
+                up = self.parent.get(up)
+            if up is None:
+                continue              # a prop: under no joint
+            for p, prim in enumerate(d["meshes"][n["mesh"]]["primitives"]):
+                if prim.get("mode", 4) in (4, 5, 6):
+                    self.rigid.append((k, n["mesh"], p,
+                                       raw_accessor(d, self.bufs, prim["attributes"]["POSITION"]),
+                                       up))
         self.prims = []           # (node, mesh, primitive, V, [(J, W)], skin)
         for k in self.skinned:
             n = self.nodes[k]
@@ -268,7 +286,8 @@ class Reference:
 
     @property
     def V(self):
-        return np.vstack([p[3] for p in self.prims])
+        """The vertices as the file holds them (skinned, then rigid), untransformed."""
+        return np.vstack([p[3] for p in self.prims + self.rigid])
 
     def animation_times(self, a):
         """Every key time of animation a's translation, rotation and scale channels."""
@@ -331,6 +350,8 @@ class Reference:
                 for c in range(4):
                     acc += (w[:, c] / tot)[:, None] * np.einsum("nij,nj->ni", M[J[:, c]], Vh)
             out.append(acc[:, :3])
+        for k, _, _, V, _ in self.rigid:          # drawn by the node's world matrix
+            out.append(V @ G[k][:3, :3].T + G[k][:3, 3])
         return np.vstack(out)
 
     def skin_at(self, a, t):

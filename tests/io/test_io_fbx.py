@@ -29,9 +29,10 @@ SLOW = {"threejs_SambaDancing_mixamo.fbx"}
 # ufbx's evaluation of a file, independent of stbs: per skinned mesh its vertices in the
 # world (the mesh node's geometry_to_world), its clusters' bone nodes with their bind
 # matrices (TransformLink) and parents, and at each (stack, time) asked for the skinned
-# vertices ufbx computes (evaluate_skinning). Each object of the binding is fetched once
-# and kept to the end (its wrappers lose a reference on every second fetch), the garbage
-# collector is off and the child leaves without freeing the scene.
+# vertices ufbx computes (evaluate_skinning); per instance of a mesh without a skin, its
+# vertices moved by the evaluated node's geometry_to_world. Each object of the binding is
+# fetched once and kept to the end (its wrappers lose a reference on every second fetch),
+# the garbage collector is off and the child leaves without freeing the scene.
 _ORACLE = r'''
 import gc, json, os, sys
 gc.disable()
@@ -56,7 +57,7 @@ src, dst, req = sys.argv[1], sys.argv[2], json.loads(sys.argv[3])
 s = once(ufbx.load_file(src))
 nodes = [once(s.nodes[i]) for i in range(len(s.nodes))]
 ids = {n.element_id: k for k, n in enumerate(nodes)}
-out, rec = {}, {"meshes": [], "nodes": []}
+out, rec = {}, {"meshes": [], "nodes": [], "rigid": []}
 for n in nodes:
     p = n.parent
     rec["nodes"].append({"name": n.name, "parent": ids[p.element_id] if p is not None else -1,
@@ -65,6 +66,14 @@ for n in nodes:
 for m in range(len(s.meshes)):
     mesh = once(s.meshes[m])
     if len(mesh.skin_deformers) == 0:
+        V = np.array(mesh.vertices, dtype=float).reshape(-1, 3)
+        for i in range(len(mesh.instances)):
+            inst = once(mesh.instances[i])
+            X = mat(inst.geometry_to_world)
+            rec["rigid"].append({"mesh": mesh.name, "node": inst.name, "n": len(V),
+                                 "index": ids[inst.element_id]})
+            out[f"V_node_{inst.name}"] = V
+            out[f"rest_node_{inst.name}"] = V @ X[:3, :3].T + X[:3, 3]
         continue
     inst = once(mesh.instances[0])
     skin = once(mesh.skin_deformers[0])
@@ -92,6 +101,11 @@ for r, (k, t) in enumerate(req):
             X = mat(once(mesh.instances[0]).geometry_to_world)
             P = P @ X[:3, :3].T + X[:3, 3]
         out[f"{r}_{mesh.name}"] = P
+    enodes = once(ev.nodes)
+    for part in rec["rigid"]:
+        X = mat(once(enodes[part["index"]]).geometry_to_world)
+        out[f"{r}_node_{part['node']}"] = out[f"V_node_{part['node']}"] @ X[:3, :3].T \
+            + X[:3, 3]
 out["record"] = np.array(json.dumps(rec))
 with open(dst, "wb") as f:
     np.savez(f, **out)
@@ -141,8 +155,8 @@ def _check_skinning(path, rig, clips, per_stack=4):
     for r, (k, t) in enumerate(req):
         pose = clips[names[k]].pose(t)
         U = stbs.deform(rig.V, rig.skeleton, pose, rig.W, method="lbs")
-        for part in rig.meta["fbx"]["meshes"]:
-            want = ref[f"{r}_{part['name']}"]
+        for part in rig.meta["fbx"]["meshes"] + rig.meta["fbx"]["rigid"]:
+            want = ref[f"{r}_node_{part['node']}" if "joint" in part else f"{r}_{part['name']}"]
             got = U[part["start"]:part["stop"]]
             err = float(np.abs(got - want).max())
             assert err <= 1e-5 * diag, (names[k], t, part["name"], err / diag)
@@ -256,12 +270,27 @@ def _T(y):
     return M
 
 
-def ascii_fbx(*, skin=True, anim=True, shift=0.0):
+# A box: 8 corners, 6 quads facing out.
+BOX_V = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], float)
+BOX_Q = [(0, 1, 3, 2), (4, 6, 7, 5), (0, 4, 5, 1), (2, 3, 7, 6), (0, 2, 6, 4), (1, 5, 7, 3)]
+
+
+def _box_geometry(uid, name):
+    poly = [v for q in BOX_Q for v in (*q[:3], -q[3] - 1)]
+    return (f"\tGeometry: {uid}, \"Geometry::{name}\", \"Mesh\" {{\n"
+            + _arr("Vertices", (0.1 * BOX_V).ravel()) + _arr("PolygonVertexIndex", poly, "{:d}")
+            + "\t\tGeometryVersion: 124\n\t}\n")
+
+
+def ascii_fbx(*, skin=True, anim=True, shift=0.0, parts=False, nod=False):
     """An ASCII FBX 7.4 of a bar (y from 0 to 2, 20 vertices, 18 quads) on Bone1
     (LimbNode at the origin) -> Mid (a Null at y = 0.5, in no cluster) -> Bone2 (a Null
     at y = 1, a cluster of its own); stack "Bend" turns Bone2 about z from 0 to 90
     degrees over 1 s, at 30 fps. ``shift``: Bone2's cluster binds the mesh that far
-    along x from where Bone1's does. Returns (text, rest vertices, Bone1's weights)."""
+    along x from where Bone1's does. ``parts``: two meshes without a skin, a box "Cap"
+    hung on Bone2 through a turned Null "Socket" (the Cap's node turned, scaled unevenly
+    and mirrored), and a box "Crate" at the scene's root (a prop); ``nod``: the stack
+    turns the Socket too. Returns (text, rest vertices, Bone1's weights)."""
     ys = [0.0, 0.5, 1.0, 1.5, 2.0]
     ring = [(-0.2, -0.2), (0.2, -0.2), (0.2, 0.2), (-0.2, 0.2)]
     V = np.array([(x, y, z) for y in ys for x, z in ring])
@@ -291,6 +320,20 @@ def ascii_fbx(*, skin=True, anim=True, shift=0.0):
                  + "\t\t}\n\t}\n"
                  f"\tNodeAttribute: {uid + 1}, \"NodeAttribute::{name}\", \"{kind}\" {{\n"
                  + ("\t\tTypeFlags: \"Skeleton\"\n" if kind == "LimbNode" else "") + "\t}\n")
+    if parts:
+        o.append(_box_geometry(1100, "Cap") + _box_geometry(1200, "Crate"))
+        for uid, name, kind, props in (
+                (3600, "Socket", "Null", (("Lcl Translation", "0.1,0.3,0"),
+                                          ("Lcl Rotation", "20,0,0"))),
+                (2100, "Cap", "Mesh", (("Lcl Translation", "0.2,0.1,0"),
+                                       ("Lcl Rotation", "0,30,45"),
+                                       ("Lcl Scaling", "-1,1.5,0.8"))),
+                (2200, "Crate", "Mesh", (("Lcl Translation", "3,0,0"),))):
+            o.append(f"\tModel: {uid}, \"Model::{name}\", \"{kind}\" {{\n\t\tVersion: 232\n"
+                     "\t\tProperties70:  {\n"
+                     + "".join("\t\t\t" + P.format(k, k, "", "A", v) for k, v in props)
+                     + "\t\t}\n\t}\n")
+        o.append("\tNodeAttribute: 3601, \"NodeAttribute::Socket\", \"Null\" {\n\t}\n")
     if skin:
         o.append("\tDeformer: 5000, \"Deformer::Skin\", \"Skin\" {\n\t\tVersion: 101\n\t}\n")
         for uid, name, w, y, dx in ((5001, "Bone1", w1, 0.0, 0.0),
@@ -324,9 +367,22 @@ def ascii_fbx(*, skin=True, anim=True, shift=0.0):
                  + _arr("KeyValueFloat", [0, 90]) + _arr("KeyAttrFlags", [24836], "{:d}")
                  + _arr("KeyAttrDataFloat", [0, 0, 0, 0], "{:d}")
                  + _arr("KeyAttrRefCount", [2], "{:d}") + "\t}\n")
+        if nod:
+            o.append("\tAnimationCurveNode: 7004, \"AnimCurveNode::R\", \"\" {\n"
+                     "\t\tProperties70:  {\n")
+            for k, v in (("X", 20), ("Y", 0), ("Z", 0)):
+                o.append("\t\t\t" + P.format(f"d|{k}", "Number", "", "A", v))
+            o.append("\t\t}\n\t}\n\tAnimationCurve: 7005, \"AnimCurve::\", \"\" {\n"
+                     "\t\tDefault: 0\n\t\tKeyVer: 4009\n" + _arr("KeyTime", [0, SEC], "{:d}")
+                     + _arr("KeyValueFloat", [20, -40]) + _arr("KeyAttrFlags", [24836], "{:d}")
+                     + _arr("KeyAttrDataFloat", [0, 0, 0, 0], "{:d}")
+                     + _arr("KeyAttrRefCount", [2], "{:d}") + "\t}\n")
     o.append("}\nConnections:  {\n")
     con = [("OO", 2000, 0), ("OO", 1000, 2000), ("OO", 3000, 0), ("OO", 3001, 3000),
            ("OO", 3500, 3000), ("OO", 3501, 3500), ("OO", 4000, 3500), ("OO", 4001, 4000)]
+    if parts:
+        con += [("OO", 3600, 4000), ("OO", 3601, 3600), ("OO", 2100, 3600),
+                ("OO", 1100, 2100), ("OO", 2200, 0), ("OO", 1200, 2200)]
     if skin:
         con += [("OO", 5000, 1000), ("OO", 5001, 5000), ("OO", 3000, 5001),
                 ("OO", 5002, 5000), ("OO", 4000, 5002)]
@@ -334,6 +390,9 @@ def ascii_fbx(*, skin=True, anim=True, shift=0.0):
     if anim:
         o += ["\tC: \"OO\",7001,7000\n", "\tC: \"OO\",7002,7001\n",
               "\tC: \"OP\",7002,4000, \"Lcl Rotation\"\n", "\tC: \"OP\",7003,7002, \"d|Z\"\n"]
+        if nod:
+            o += ["\tC: \"OO\",7004,7001\n", "\tC: \"OP\",7004,3600, \"Lcl Rotation\"\n",
+                  "\tC: \"OP\",7005,7004, \"d|X\"\n"]
     o.append("}\n")
     return "".join(o), V, w1
 
@@ -383,6 +442,59 @@ def test_a_cluster_that_binds_the_mesh_elsewhere_still_skins_as_the_file(tmp_pat
     with pytest.warns(UserWarning, match=r"'Bone2' bind the mesh elsewhere"):
         rig, clips = read_fbx(path)
     assert _check_skinning(path, rig, clips, per_stack=5) > 0.2
+
+
+def test_a_mesh_parented_to_a_bone_moves_with_it(tmp_path):
+    # the Cap, without a skin, hangs on Bone2 through the Socket: it is read, weighted 1
+    # to Bone2, placed where ufbx draws it at rest and moved as ufbx moves its node;
+    # the Crate under no joint is a prop, not read
+    path = tmp_path / "parts.fbx"
+    path.write_text(ascii_fbx(parts=True)[0])
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        rig, clips = read_fbx(path)
+    assert rig.meta["fbx"]["rigid"] == [{"name": "Cap", "node": "Cap", "joint": "Bone2",
+                                         "start": 20, "stop": 28}]
+    assert len(rig.V) == 28 and rig.meta["fbx"]["meshes"][0]["stop"] == 20
+    sk = rig.skeleton
+    assert np.all(rig.W[20:, sk.names.index("Bone2")] == 1)
+    rec, arr = ufbx_says(path)
+    assert [r["node"] for r in rec["rigid"]] == ["Cap", "Crate"]
+    np.testing.assert_allclose(rig.V[20:], arr["rest_node_Cap"], atol=1e-9)
+    # mirrored by its node, drawn with its winding reversed: its faces still face out
+    F = rig.F[(rig.F >= 20).all(axis=1)]
+    assert len(F) == 12
+    vol = np.einsum("fi,fi->f", rig.V[F[:, 0]], np.cross(rig.V[F[:, 1]], rig.V[F[:, 2]]))
+    assert vol.sum() > 0
+    # at the keys, lbs of the whole rig is ufbx's skinning of the bar and ufbx's node
+    # transform of the Cap (asserted to 1e-5 of the size, the Cap's rows included)
+    assert _check_skinning(path, rig, clips, per_stack=7) > 0.2
+    _, ref = ufbx_says(path, [(0, 0.5), (0, 1.0)])
+    U = stbs.deform(rig.V, sk, clips["Bend"].pose(1.0), rig.W, method="lbs")
+    assert np.abs(U[20:] - ref["1_node_Cap"]).max() <= 1e-9
+    assert np.abs(ref["1_node_Cap"] - rig.V[20:]).max() > 0.3           # it moved
+    # rigid=False (also through read_rig), or one mesh alone: the bar only
+    for alone in (read_fbx(path, rigid=False)[0], read_rig(path, rigid=False),
+                  read_fbx(path, mesh="Bar")[0]):
+        assert len(alone.V) == 20 and alone.meta["fbx"]["rigid"] == []
+    assert len(read_rig(path).V) == 28
+    # Bone2's cluster binding the bar 0.3 along x from where Bone1's does: Bone2's bind
+    # is not its rest, and the Cap is placed by that bind so that it still moves as ufbx
+    # moves it
+    path = tmp_path / "shifted.fbx"
+    path.write_text(ascii_fbx(parts=True, shift=0.3)[0])
+    with pytest.warns(UserWarning, match=r"'Bone2' bind the mesh elsewhere"):
+        rig, clips = read_fbx(path)
+    assert np.abs(rig.V[20:] - arr["rest_node_Cap"]).max() > 0.2
+    assert _check_skinning(path, rig, clips, per_stack=7) > 0.2
+
+
+def test_a_stack_moving_a_parts_own_node_is_warned_about(tmp_path):
+    path = tmp_path / "nod.fbx"
+    path.write_text(ascii_fbx(parts=True, nod=True)[0])
+    with pytest.warns(UserWarning, match=r"stack 'Bend' moves the rigid parts 'Cap' \(on "
+                                         r"'Bone2'\) apart from their joints"):
+        read_fbx(path)
 
 
 # --------------------------------------------------------------------------- reading rigs

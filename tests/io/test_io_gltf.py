@@ -412,3 +412,123 @@ def test_bad_content_is_one_clear_error(tmp_path, fn, match):
 def test_a_missing_file(tmp_path):
     with pytest.raises(FileNotFoundError):
         read_gltf(tmp_path / "none.glb")
+
+
+# ------------------------------------------------------------------ meshes hung on joints
+# A box, 8 corners, 12 triangles facing out.
+BOX_V = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], float)
+BOX_F = np.array([[0, 1, 3], [0, 3, 2], [4, 6, 7], [4, 7, 5], [0, 4, 5], [0, 5, 1],
+                  [2, 3, 7], [2, 7, 6], [0, 2, 6], [0, 6, 4], [1, 5, 7], [1, 7, 3]])
+
+
+def _volume(V, F):
+    """Signed volume of a closed surface (> 0 when its triangles face out)."""
+    return float(np.einsum("fi,fi->f", V[F[:, 0]], np.cross(V[F[:, 1]], V[F[:, 2]])).sum()
+                 / 6)
+
+
+def hang_parts(doc, b, IBM):
+    """Meshes without a skin: a helmet on the neck through a non-joint mount (turned,
+    scaled unevenly and mirrored), the same box as a glove right under arm_l, a box on
+    the joint leg_l itself; a lamp under the Armature node (above every joint) and a
+    table at the scene's root are props, not the character."""
+    nodes = doc["nodes"]
+    box = {"attributes": {"POSITION": b.add(0.1 * BOX_V)}, "indices": b.add(BOX_F.ravel(),
+                                                                           USHORT)}
+    leg = {"attributes": {"POSITION": b.add(0.1 * BOX_V + [0, -0.3, 0])},
+           "indices": b.add(BOX_F.ravel(), USHORT)}
+    doc["meshes"] += [{"name": "box", "primitives": [box]},
+                      {"name": "leg", "primitives": [leg]}]
+    nodes[9]["children"] = [12]                                        # neck
+    nodes[3]["mesh"] = 2                                               # leg_l
+    nodes[8]["children"] = [16]                                        # arm_l
+    nodes[0]["children"] = nodes[0]["children"] + [14]                 # Armature
+    nodes += [{"name": "mount", "translation": [0, 0.2, 0.05],
+               "rotation": quat_xyzw([0, 1, 1], 35), "children": [13]},
+              {"name": "helmet", "mesh": 1, "translation": [0.05, 0.1, 0],
+               "scale": [-1, 1.5, 0.8]},
+              {"name": "lamp", "mesh": 1, "translation": [3, 0, 0]},
+              {"name": "table", "mesh": 1, "translation": [0, -2, 0]},
+              {"name": "glove", "mesh": 1, "translation": [0.3, 0, 0],
+               "rotation": quat_xyzw([1, 0, 0], 60)}]
+    doc["scenes"][0]["nodes"] += [15]
+
+
+def _parts(rig):
+    """{node: (rows, triangles)} of the rig's rigid parts."""
+    out = {}
+    for p in rig.meta["gltf"]["rigid"]:
+        rows = np.arange(p["start"], p["start"] + p["count"])
+        out[p["node"]] = (rows, rig.F[np.isin(rig.F, rows).all(axis=1)])
+    return out
+
+
+def test_meshes_hung_on_joints_are_part_of_the_rig(tmp_path):
+    path, ctx = _scene(tmp_path, edit=hang_parts)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        rig, clips = read_gltf(path)
+    n = len(ctx["V"])
+    g = rig.meta["gltf"]
+    # after the skinned body, in node order: leg_l on itself, the helmet on the neck
+    # (the nearest joint above, across the mount), the glove on arm_l; no lamp, no table
+    assert [(p["node"], p["mesh"], p["primitive"], p["joint"], p["start"], p["count"])
+            for p in g["rigid"]] == [(3, 2, 0, 3, n, 8), (13, 1, 0, 9, n + 8, 8),
+                                     (16, 1, 0, 8, n + 16, 8)]
+    assert len(rig.V) == n + 24 and rig.F.max() == n + 23
+    np.testing.assert_array_equal(rig.V[:n], ctx["V"].astype(np.float32).astype(float))
+    sk = rig.skeleton
+    for p in g["rigid"]:
+        rows = slice(p["start"], p["start"] + p["count"])
+        assert np.all(rig.W[rows, sk.names.index(NAMES[p["joint"]])] == 1)
+    # placed as the file's bind pose draws them (the chest's bind is not its rest: the
+    # helmet and glove sit where the turned-back chest carries them)
+    ref = Reference(path)
+    assert [(k, m, p, j) for k, m, p, _, j in ref.rigid] == [(3, 2, 0, 3), (13, 1, 0, 9),
+                                                            (16, 1, 0, 8)]
+    np.testing.assert_allclose(rig.V, ref.skin_bind(), atol=1e-6)
+    # facing out, the mirrored helmet too (its triangles reversed, as viewers draw them)
+    for node, (_, F) in _parts(rig).items():
+        assert len(F) == 12 and _volume(rig.V, F) > 0, NAMES[node] if node < 12 else node
+    assert (_parts(rig)[13][1][0] == [n + 8, n + 8 + 3, n + 8 + 1]).all()
+    # they move exactly as the file draws them: at every key (the Armature's turn
+    # too), and between keys where no non-joint node moves
+    for a, name in enumerate(clips):
+        T = ref.animation_times(a)
+        assert _err(rig, clips[name], ref, a, T) <= 1e-5, name
+        if name != "wave":
+            assert _err(rig, clips[name], ref, a, _times(ref, a)) <= 1e-5, name
+        moved = max(np.abs(ref.skin_at(a, float(t))[n:] - rig.V[n:]).max() for t in T)
+        assert moved > 0.05, name
+    # turning the chest by hand carries the helmet and the glove
+    B = ref.bind_world()
+    D = stbs.transforms.axis_angle_to_matrix(np.array([1.0, 2, 3]) / np.sqrt(14),
+                                             np.radians(40))
+    R = np.tile(np.eye(3), (sk.n_bones, 1, 1))
+    Rb = B[6][:3, :3] / np.cbrt(np.linalg.det(B[6][:3, :3]))
+    R[JOINTS.index(6)] = Rb @ D @ Rb.T
+    U = stbs.deform(rig.V, sk, stbs.forward_kinematics(sk, rotations=R), rig.W, method="lbs")
+    np.testing.assert_allclose(U, ref.skin_bind(turn=(6, D)), atol=1e-6)
+    # rigid=False, or one mesh alone: the skinned body only
+    for kw in ({"rigid": False}, {"mesh": "body"}):
+        alone, _ = read_gltf(path, **kw)
+        assert len(alone.V) == n and alone.meta["gltf"]["rigid"] == []
+    assert len(Reference(path, rigid=False).V) == n
+    with pytest.raises(TypeError, match="rigid must be True or False"):
+        read_gltf(path, rigid="no")
+
+
+def test_an_animation_moving_a_rigid_parts_mount_is_warned_about(tmp_path):
+    def nod(b):
+        return {"name": "nod", "samplers": [
+            {"input": b.add(np.array([0.0, 1.0])),
+             "output": b.add(np.array([quat_xyzw([0, 1, 1], 35), quat_xyzw([1, 0, 0], 50)]))}],
+            "channels": [{"sampler": 0, "target": {"node": 12, "path": "rotation"}}]}
+
+    path, _ = _scene(tmp_path, edit=hang_parts, extra_anims=[nod])
+    rig, clips = read_gltf(path)
+    clips["step"]                                       # no warning: the mount holds
+    with pytest.warns(UserWarning, match=r"'nod'\) moves node 'mount' \(carrying 'helmet' "
+                                         r"on joint 'neck'\); a rigid part moves with its "
+                                         "joint only"):
+        clips["nod"]

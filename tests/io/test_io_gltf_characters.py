@@ -124,20 +124,27 @@ def _similarity(X, Y):
     return out
 
 
-@pytest.mark.parametrize("name, vertices, primitives, bones", [
-    ("characters/gltf/BrainStem.glb", 34159, 59, 18),
-    ("characters/gltf/threejs_Xbot.glb", 28374, 2, 67),
-    ("characters/gltf/RobotExpressive.glb", 1108, 4, 43),
-    ("characters/gltf/Fox_separate/Fox.gltf", 1728, 1, 24),
+@pytest.mark.parametrize("name, vertices, primitives, rigid, bones", [
+    ("characters/gltf/BrainStem.glb", 34159, 59, 0, 18),
+    ("characters/gltf/threejs_Xbot.glb", 28374, 2, 0, 67),
+    # two skinned hands (1,108 vertices), 12 meshes hung on joints (15 primitives)
+    ("characters/gltf/RobotExpressive.glb", 7214, 4, 15, 43),
+    ("characters/gltf/Fox_separate/Fox.gltf", 1728, 1, 0, 24),
 ])
 def test_every_skinned_mesh_and_primitive_is_read(characters, name, vertices, primitives,
-                                                  bones):
+                                                  rigid, bones):
     path, rig, clips, ref = characters(name)
     assert rig.V.shape == (vertices, 3) and len(ref.V) == vertices
     g = rig.meta["gltf"]
+    assert len(g["primitives"]) == primitives and len(g["rigid"]) == rigid
     assert [(p["node"], p["mesh"], p["primitive"]) for p in g["primitives"]] == \
         [(k, m, p) for k, m, p, *_ in ref.prims]
-    assert sum(p["count"] for p in g["primitives"]) == vertices
+    assert [(p["node"], p["mesh"], p["primitive"], p["joint"]) for p in g["rigid"]] == \
+        [(k, m, p, j) for k, m, p, _, j in ref.rigid]
+    parts = g["primitives"] + g["rigid"]
+    assert [p["start"] for p in parts] == np.cumsum([0] + [p["count"] for p in parts])[
+        :-1].tolist()
+    assert sum(p["count"] for p in parts) == vertices
     assert rig.skeleton.n_bones == bones
     # bones named as their joint nodes
     names = [ref.nodes[j].get("name") for j in g["joints"]]
@@ -161,6 +168,46 @@ def test_robot_reads_both_skins_over_one_hierarchy(characters):
     path, rig, clips, ref = characters("characters/gltf/RobotExpressive.glb")
     assert rig.meta["gltf"]["skins"] == [0, 1]
     assert {p["node"] for p in rig.meta["gltf"]["primitives"]} == {72, 73}
+
+
+def test_robot_reads_its_whole_body(characters):
+    # only the hands are skinned; the body, head, arms and legs hang on joint nodes.
+    # Each rigid part moves exactly with its joint's skin matrix: its vertices under
+    # the rig's lbs are where the file's node hierarchy draws them, at keys and between
+    path, rig, clips, ref = characters("characters/gltf/RobotExpressive.glb")
+    g = rig.meta["gltf"]
+    names = {ref.nodes[p["node"]]["name"] for p in g["rigid"]}
+    assert names == {"Foot.L", "Foot.R", "Torso", "Head", "Shoulder.L", "Shoulder.R",
+                     "Arm.L", "Arm.R", "Leg.L", "Leg.R", "LowerLeg.L", "LowerLeg.R"}
+    sk = rig.skeleton
+    for p in g["rigid"]:
+        rows = slice(p["start"], p["start"] + p["count"])
+        bone = g["joints"].index(p["joint"])
+        assert np.all(rig.W[rows, bone] == 1) and np.all(rig.W[rows].sum(axis=1) == 1)
+        assert sk.names[bone] == ref.nodes[p["joint"]]["name"]
+    skinned = sum(p["count"] for p in g["primitives"])
+    assert skinned == 1108 and len(rig.V) == 7214
+    assert rig.F.max() < len(rig.V) and rig.F[:, 0].size == 3237
+    # every animation, at seeded keys and mid-keys
+    rng = np.random.default_rng(7)
+    dfm = stbs.Deformer(rig.V, sk, rig.W, method="lbs")
+    size = _size(rig.V)
+    worst, moved = 0.0, 0.0
+    for a, anim in enumerate(clips):
+        T = ref.animation_times(a)
+        mids = (T[1:] + T[:-1]) / 2
+        for t in np.concatenate([rng.choice(T, 2, replace=False), rng.choice(mids, 2)]):
+            want = ref.skin_at(a, float(t))
+            got = dfm(clips[anim].pose(float(t)))
+            worst = max(worst, np.abs(got - want)[skinned:].max() / size)
+            moved = max(moved, np.abs(want - rig.V)[skinned:].max() / size)
+    assert worst <= TOL and moved > 0.2, (worst, moved)
+    # rigid=False: the hands alone, as before
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        hands, _ = read_gltf(path, rigid=False)
+    assert len(hands.V) == skinned and hands.meta["gltf"]["rigid"] == []
+    np.testing.assert_array_equal(hands.V, rig.V[:skinned])
 
 
 def test_a_rig_read_decodes_no_animation(shared_data, monkeypatch):

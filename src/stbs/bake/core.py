@@ -71,12 +71,15 @@ def load_motion(path: str | os.PathLike, rig: Rig, *, mapping=None, twist: str =
 
 
 def _gltf_selection(rig: Rig, p: Path) -> dict:
-    """The skin=/mesh= the rig was read with, when the motion is the rig's own file."""
+    """The skin=/mesh=/rigid= the rig was read with, when the motion is the rig's own
+    file (the rigid parts shape the leaf bones, so the clips' skeleton is the rig's)."""
     info = (rig.meta or {}).get("gltf")
     if not isinstance(info, dict) or info.get("file") != p.name:
         return {}
-    sel = info.get("select") or {}
-    return {k: v for k, v in sel.items() if k in ("skin", "mesh") and v is not None}
+    sel = dict(info.get("select") or {})
+    if "rigid" not in info:
+        sel["rigid"] = False            # read by an stbs that read skinned meshes only
+    return {k: v for k, v in sel.items() if k in ("skin", "mesh", "rigid") and v is not None}
 
 
 def _moves(clip: Clip) -> bool:

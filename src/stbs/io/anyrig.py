@@ -28,9 +28,10 @@ RIG_EXTENSIONS = (".npz", *GLTF_EXTENSIONS, *FBX_EXTENSIONS)
 def read_rig(path: str | os.PathLike, **gltf_options: Any) -> Rig:
     """The rig in a ``.npz`` rig file, a glTF 2.0 file (``.gltf``/``.glb``) or an FBX file.
 
-    ``gltf_options`` (``skin=``, ``mesh=``) pick the skinned mesh of a glTF file or the
-    skeleton of an FBX file (see :func:`stbs.io.read_gltf`, :func:`stbs.io.read_fbx`);
-    their animations are not read here.
+    ``gltf_options`` (``skin=``, ``mesh=``, ``rigid=``) pick the skinned mesh of a glTF
+    file or the skeleton of an FBX file, and whether the meshes hung rigidly on its
+    joints come too (see :func:`stbs.io.read_gltf`, :func:`stbs.io.read_fbx`); their
+    animations are not read here.
     """
     ext = suffix(path, RIG_EXTENSIONS, "read_rig")
     if ext == ".npz":
@@ -54,8 +55,9 @@ def write_rig(path: str | os.PathLike, rig: Rig, *, source: str | os.PathLike | 
     source : str or os.PathLike, optional
         The glTF file ``rig`` was read from. Writing glTF then copies that file and adds
         the rig's endpoint weights (``_ENDPOINT_WEIGHTS_0`` on every primitive of the
-        skinned mesh, aligned with ``JOINTS_0``) and its bone table
-        (``skin.extras["stbs"]``); nothing else of the file changes. Without it, glTF
+        skinned meshes, aligned with ``JOINTS_0``) and its bone table
+        (``skin.extras["stbs"]``); nothing else of the file changes (meshes hung rigidly
+        on joints stay as they were, see :mod:`stbs.io.gltf.patch`). Without it, glTF
         is written afresh by :func:`stbs.io.write_gltf`.
     """
     ext = suffix(path, RIG_EXTENSIONS, "write_rig")

@@ -16,6 +16,18 @@ How an FBX character becomes a rig
   which vertex range (``start``, ``stop``) came from which mesh. Polygons become
   triangle fans ``(v0, v_k, v_k+1)``, exact for convex faces; points and lines are
   dropped. Only a mesh's first skin deformer counts, as in ufbx's own evaluation.
+- *Rigid parts*: a mesh without a skin deformer whose node is a joint or lies below one
+  (a robot's limbs parented to its bones) moves with its nearest joint ``j``: ufbx
+  draws it at ``G_j(t) G_j^-1 X`` (``X`` its geometry-to-world at rest, ``G_j`` the
+  joint's world transform, at rest and at ``t``). Its vertices follow the skinned
+  meshes' in ``V`` (mesh order, each instance of the mesh under a joint once), placed
+  at ``B_j G_j^-1 X`` (``B_j`` the joint's bind matrix), so the joint's skinning matrix
+  ``G_j(t) B_j^-1`` moves them exactly as ufbx does; their rows of ``W`` are 1 on bone
+  ``j``, and a mirroring ``X`` reverses their triangles' winding, as renderers do.
+  ``rig.meta["fbx"]["rigid"]`` records each one (mesh name, node, joint, ``start``,
+  ``stop``). A stack that moves a node between a part and its joint is warned about
+  (the part then follows its joint only). Meshes under no joint (props, scenery) are
+  not read; ``rigid=False`` leaves the rigid parts out, and so does ``mesh=``.
 - The *joints* are the bones the clusters name (LimbNode, Null or any other node),
   plus the nodes on the parent chains between two of them, in the file's node order.
   Bone ``i`` of the rig is joint ``i`` (see :mod:`stbs.rig.joints`), named after its
@@ -39,9 +51,8 @@ How an FBX character becomes a rig
   ``lbs`` reproduces ufbx's linear skinning of the file at the keys; a joint whose
   matrix scales loses the scale, with a warning (:func:`clip_from_joint_matrices`).
 
-Not read: blend shapes (morph targets), materials and UVs, meshes parented to a bone
-without a skin, dual-quaternion blending (the weights are read; ``rig.meta["fbx"]``
-names the file's skinning method).
+Not read: blend shapes (morph targets), materials and UVs, dual-quaternion blending
+(the weights are read; ``rig.meta["fbx"]`` names the file's skinning method).
 """
 
 from __future__ import annotations
@@ -160,6 +171,7 @@ for m, mesh in enumerate(items(scene.meshes)):
     out[f"mesh{m}_V"] = np.array(mesh.vertices, dtype=float).reshape(-1, 3)
     out[f"mesh{m}_I"] = np.array(mesh.vertex_indices, dtype=np.int64).reshape(-1)
     out[f"mesh{m}_faces"] = np.array(mesh.faces, dtype=np.int64).reshape(-1, 2)
+    out[f"mesh{m}_g2w"] = np.array([mat(n.geometry_to_world) for n in inst]).reshape(-1, 4, 4)
     if mine:
         rec["method"] = int(mine[0].skinning_method)
         for cl in items(mine[0].clusters):
@@ -186,6 +198,15 @@ for pose in items(scene.poses):
 if "pose_world" in out:
     out["pose_world"] = np.array(out["pose_world"])
 
+def ancestors(k):
+    out = []
+    k = parent[k]
+    while k >= 0:
+        out.append(k)
+        k = parent[k]
+    return out
+
+
 # The nodes a skeleton can use: every cluster's bone and its ancestors.
 need = set()
 for rec in meta["meshes"]:
@@ -194,6 +215,12 @@ for rec in meta["meshes"]:
         while k >= 0 and k not in need:
             need.add(k)
             k = parent[k]
+# and the nodes of meshes without a skin below them (parts hung on a bone)
+for rec in meta["meshes"]:
+    if not rec["skins"]:
+        for k in rec["nodes"]:
+            if any(a in need for a in ancestors(k)):
+                need.add(k)
 need = sorted(need)
 meta["evaluated"] = need
 fps = meta["fps"] if np.isfinite(meta["fps"]) and meta["fps"] > 0 else 30.0
@@ -390,7 +417,25 @@ _METHODS = {0: "linear", 1: "rigid", 2: "dual quaternion", 3: "blended dual quat
 _AXES = ("+x", "-x", "+y", "-y", "+z", "-z")
 
 
-def _build(p: Path, meta: dict, arr: dict, skin, mesh, anims: bool
+def _hung(meta: dict, col: dict[int, int]) -> list[tuple[int, int, int, int]]:
+    """(mesh, instance, node, joint node) of every instance of a mesh without a skin
+    deformer whose node is a joint or lies below one (``joint``: the nearest), in mesh
+    and instance order."""
+    nodes = meta["nodes"]
+    out = []
+    for m, rec in enumerate(meta["meshes"]):
+        if rec["skins"]:
+            continue
+        for i, node in enumerate(rec["nodes"]):
+            k = node
+            while k >= 0 and k not in col:
+                k = nodes[k]["parent"]
+            if k >= 0:
+                out.append((m, i, node, k))
+    return out
+
+
+def _build(p: Path, meta: dict, arr: dict, skin, mesh, anims: bool, rigid: bool = True
            ) -> tuple[Rig, dict[str, Clip]]:
     picked = _pick(p, meta, skin, mesh)
     nodes = meta["nodes"]
@@ -494,7 +539,29 @@ def _build(p: Path, meta: dict, arr: dict, skin, mesh, anims: bool
         if i not in bind:                   # a chain node: the bind pose, else its rest
             bind[i] = pose.get(node, arr["node_world"][node])
     B = np.array([bind[i] for i in range(len(joints))])
-    info = {"file": p.name, "meshes": ranges, "joints": names,
+
+    # ---- meshes hung on a joint without a skin: drawn at G_j(t) G_j^-1 X (X: the mesh
+    # node's geometry-to-world at rest, G_j the joint's world at rest), so placed at
+    # B_j G_j^-1 X they move exactly with the joint's skinning matrix G_j(t) B_j^-1
+    parts, hung = [], []
+    for m, i, node, joint in (_hung(meta, col) if rigid and mesh is None else []):
+        rec = recs[m]
+        V0 = arr[f"mesh{m}_V"]
+        n = len(V0)
+        F = _fans(p, rec["name"], arr[f"mesh{m}_I"], arr[f"mesh{m}_faces"], n)
+        X = B[col[joint]] @ np.linalg.inv(arr["node_world"][joint]) @ arr[f"mesh{m}_g2w"][i]
+        if np.linalg.det(X[:3, :3]) < 0:    # mirrored: drawn with the winding reversed
+            F = F[:, [0, 2, 1]]
+        W = np.zeros((n, len(joints)))
+        W[:, col[joint]] = 1.0
+        Vs.append(V0 @ X[:3, :3].T + X[:3, 3])
+        Fs.append(F + off)
+        Ws.append(W)
+        parts.append({"name": rec["name"], "node": nodes[node]["name"],
+                      "joint": names[col[joint]], "start": off, "stop": off + n})
+        hung.append((node, col[joint]))
+        off += n
+    info = {"file": p.name, "meshes": ranges, "rigid": parts, "joints": names,
             "version": meta["version"], "ascii": meta["ascii"], "creator": meta["creator"],
             "unit_meters": meta["unit_meters"],
             "fps": meta["fps"] if np.isfinite(meta["fps"]) else None,
@@ -522,19 +589,36 @@ def _build(p: Path, meta: dict, arr: dict, skin, mesh, anims: bool
         clips[name] = clip_from_joint_matrices(
             rig.skeleton, times, M, fps=fps,
             source=f"{p.name}: animation stack {name!r}")
+        # a part whose own node (or one between it and its joint) moves follows its
+        # joint only: said once per stack
+        apart = []
+        for node, i in hung:
+            want = G[:, i] @ (np.linalg.inv(arr["node_world"][joints[i]])
+                              @ arr["node_world"][node])
+            got = arr[f"stack{s}_G"][:, where[node]]
+            if np.abs(got - want).max() > 1e-5 * max(1.0, float(np.abs(want).max())):
+                apart.append(f"{nodes[node]['name']!r} (on {names[i]!r})")
+        if apart:
+            warnings.warn(f"{p}: animation stack {name!r} moves the rigid parts "
+                          f"{', '.join(dict.fromkeys(apart))} apart from their joints; the "
+                          "rig moves them with their joints only", UserWarning, stacklevel=3)
     return rig, clips
 
 
-def _read(path, *, skin=None, mesh=None, anims: bool = True) -> tuple[Rig, dict[str, Clip]]:
+def _read(path, *, skin=None, mesh=None, rigid: bool = True, anims: bool = True
+          ) -> tuple[Rig, dict[str, Clip]]:
     """:func:`read_fbx`; ``anims=False`` leaves the stacks out (for :func:`read_rig`)."""
+    if not isinstance(rigid, (bool, np.bool_)):
+        raise TypeError(f"rigid must be True or False, got {rigid!r}")
     p = input_path(path, "FBX")
     suffix(p, FBX_EXTENSIONS, "read_fbx")
     meta, arr = _run_child(p, anims)
-    return _build(p, meta, arr, skin, mesh, anims)
+    return _build(p, meta, arr, skin, mesh, anims, bool(rigid))
 
 
 def read_fbx(path: str | os.PathLike, *, skin: int | str | None = None,
-             mesh: int | str | None = None) -> tuple[Rig, dict[str, Clip]]:
+             mesh: int | str | None = None, rigid: bool = True
+             ) -> tuple[Rig, dict[str, Clip]]:
     """Read a skinned character and its animation stacks from an FBX file.
 
     Binary and ASCII FBX, through ufbx (the ``fbx`` extra). The file is never modified.
@@ -549,17 +633,24 @@ def read_fbx(path: str | os.PathLike, *, skin: int | str | None = None,
         with every mesh bound to it.
     mesh : int or str, optional
         One skinned mesh (index among the skinned meshes, or the name of the mesh or
-        of its node): only that mesh is read. Default (neither): every mesh bound to
-        the file's skeleton; with several skeletons, the first (with a warning).
+        of its node): only that mesh is read, without the rigid parts. Default
+        (neither): every mesh bound to the file's skeleton; with several skeletons, the
+        first (with a warning).
+    rigid : bool, default True
+        Read the meshes without a skin attached to the skeleton's bones too (see the
+        module docs), each moving with its nearest joint; False: the skinned meshes
+        only.
 
     Returns
     -------
     rig : Rig
         3D; ``V`` (n, 3) and ``F`` (f, 3) of the meshes in the world bind pose, in the
-        file's coordinates and units; one bone per joint, named as its node; ``W``
-        (n, j); ``E`` None. ``rig.meta["fbx"]`` holds the file name, each mesh's vertex
-        range (``meshes``: name, node, start, stop, skinning method), the joint names,
-        the file's FBX version, creator, ``unit_meters``, axes and frame rate.
+        file's coordinates and units (the skinned meshes, then the rigid parts); one
+        bone per joint, named as its node; ``W`` (n, j) (a rigid part's rows: 1 on its
+        joint's bone); ``E`` None. ``rig.meta["fbx"]`` holds the file name, each skinned
+        mesh's vertex range (``meshes``: name, node, start, stop, skinning method), each
+        rigid part's (``rigid``: name, node, joint, start, stop), the joint names, the
+        file's FBX version, creator, ``unit_meters``, axes and frame rate.
     clips : dict of str to Clip
         One per animation stack, by name, in file order; keyed at every frame of the
         file's frame rate over the stack's time span.
@@ -574,4 +665,4 @@ def read_fbx(path: str | os.PathLike, *, skin: int | str | None = None,
     OptionalDependencyError
         ufbx is not installed.
     """
-    return _read(path, skin=skin, mesh=mesh)
+    return _read(path, skin=skin, mesh=mesh, rigid=rigid)

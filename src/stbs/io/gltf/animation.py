@@ -40,7 +40,7 @@ file); constant scales are part of the bind.
 from __future__ import annotations
 
 import warnings
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -75,11 +75,15 @@ class Joints:
         Inverse bind matrices.
     skeleton : Skeleton
         Bone ``i`` starts at joint ``i``'s bind position; parent bones are parent joints.
+    carried : dict of int to (int, int)
+        The nodes that hang a rigid part below its joint (those between the joint and the
+        mesh node, and the mesh node): node -> (mesh node, bone of the joint).
     """
 
     nodes: list[int]
     ibm: np.ndarray
     skeleton: Skeleton
+    carried: dict[int, tuple[int, int]] = field(default_factory=dict)
 
 
 def animation_names(f: GltfFile) -> list[str]:
@@ -260,6 +264,31 @@ def _product(M: np.ndarray, nodes: list[int]) -> np.ndarray:
     return out
 
 
+def _warn_carried(f: GltfFile, scene: Scene, J: Joints, chans: dict, label: str) -> None:
+    """Warn when the animation moves a node between a rigid part and its joint: the rig
+    carries the part with the joint alone."""
+    moved: dict[int, int] = {}
+    for (node, path), ch in chans.items():
+        if node not in J.carried:
+            continue
+        rest = {"translation": scene.T, "rotation": scene.Q, "scale": scene.S}[path][node]
+        off = not ch.constant
+        if not off:
+            v = ch.rest_value()
+            gap = (min(np.abs(v - rest).max(), np.abs(v + rest).max())
+                   if path == "rotation" else np.abs(v - rest).max())
+            off = gap > 1e-6 * max(1.0, float(np.abs(rest).max()))
+        if off:
+            moved.setdefault(node, J.carried[node][0])
+    if moved:
+        who = ", ".join(f"node {scene.name(k)!r} (carrying {scene.name(m)!r} on joint "
+                        f"{J.skeleton.names[J.carried[k][1]]!r})"
+                        for k, m in list(moved.items())[:6])
+        warnings.warn(f"{str(f.path)!r}: {label} moves {who}; a rigid part moves with its "
+                      "joint only, so that motion is not in the rig", UserWarning,
+                      stacklevel=4)
+
+
 def decode_clip(f: GltfFile, scene: Scene, J: Joints, a: int, name: str) -> Clip:
     """Animation ``a`` of ``f`` as a clip of ``J.skeleton`` (see the module docs)."""
     sk = J.skeleton
@@ -270,7 +299,9 @@ def decode_clip(f: GltfFile, scene: Scene, J: Joints, a: int, name: str) -> Clip
     for j in nodes:
         relevant.add(j)
         relevant.update(scene.ancestors(j))
-    chans = _channels(f, a, relevant, scene.n)
+    chans = _channels(f, a, relevant | set(J.carried), scene.n)
+    _warn_carried(f, scene, J, chans, f"animation {a} ({name!r})")
+    chans = {key: ch for key, ch in chans.items() if key[0] in relevant}
 
     # constant channels are part of the rest; the others move
     T0, Q0, S0 = scene.T.copy(), scene.Q.copy(), scene.S.copy()

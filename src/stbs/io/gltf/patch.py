@@ -3,15 +3,24 @@
 The paper's promise is that STBS needs "only an extra scalar weight function per
 bone ... without changing the existing skeleton rig or bone weights". So a rig read
 from a glTF file is written back as a *copy* of that file -- nodes, joint orientations,
-animations, materials and textures as they were -- with, on every primitive the rig's
-vertices came from (``rig.meta["gltf"]["primitives"]``):
+animations, materials and textures as they were -- with, on every skinned primitive the
+rig's vertices came from (``rig.meta["gltf"]["primitives"]``):
 
 - the endpoint weights as ``_ENDPOINT_WEIGHTS_n``, aligned with ``JOINTS_n``;
 - when the rig's bone weights are no longer the file's (recomputed, painted), new
   ``JOINTS_0``/``WEIGHTS_0`` (each vertex's four heaviest joints of that primitive's
   skin, quantised to sum to 65535) in place of the file's sets;
 
-and the bone table (:mod:`stbs.io.gltf.bones`) in each of the rig's skins. The copy is
+and the bone table (:mod:`stbs.io.gltf.bones`) in each of the rig's skins.
+
+A *rigid part* (a mesh without a skin hung on a joint, ``rig.meta["gltf"]["rigid"]``)
+is left exactly as it was, and its endpoint weights are not written. Giving it
+skinning attributes would mean giving its node a skin, and a skinned mesh ignores its
+node's transform and its parents' (the validator warns about a skinned mesh that is
+not a root node, and viewers differ in how they draw one), so the copy would no longer
+draw as the source in every viewer. Read back, its endpoint weights are eq. 8's
+projection onto its bone (see :func:`stbs.io.read_gltf`); new bone weights on it are
+not written either (with a warning). The copy is
 self-contained: the buffers the file uses become one (the GLB's BIN chunk, or a
 ``data:`` URI), and external PNG or JPEG images are embedded, so it can be written
 anywhere.
@@ -21,6 +30,7 @@ from __future__ import annotations
 
 import copy
 import os
+import warnings
 from pathlib import Path
 from typing import Any
 
@@ -159,8 +169,33 @@ def write_back(src: str | os.PathLike, dst: str | os.PathLike, rig: Rig) -> None
                 del at[name]
             at.update(skin_attributes(blob, Wr[:, to_bone], E[rows][:, to_bone],
                                       len(to_bone)))
+    repainted = []
+    for e in info.get("rigid", []):
+        m, k, start, n = (int(e[x]) for x in ("mesh", "primitive", "start", "count"))
+        total += n
+        what = f"mesh {m} primitive {k}"
+        try:
+            count = f.items("accessors")[doc["meshes"][m]["primitives"][k]["attributes"][
+                "POSITION"]]["count"]
+            bone = col[int(e["joint"])]
+        except (KeyError, IndexError, TypeError):
+            raise ValueError(f"{str(f.path)!r} is not the file the rig was read from ({what} "
+                             "or its joint differ)") from None
+        if count != n or start + n > len(W):
+            raise ValueError(f"{str(f.path)!r} is not the file the rig was read from ({what} "
+                             f"has {count} vertices, the rig's record {n})")
+        Wr = W[start:start + n]
+        one = np.zeros(b)
+        one[bone] = 1.0
+        if np.abs(Wr / np.maximum(Wr.sum(1, keepdims=True), 1e-300) - one).max() \
+                > _SAME_WEIGHTS:
+            repainted.append(scene.name(int(e["node"])))
+    if repainted:
+        warnings.warn(f"the rigid parts {', '.join(map(repr, dict.fromkeys(repainted)))} "
+                      "have new bone weights in the rig; they are written as they were "
+                      "(moved by their nodes), without them", UserWarning, stacklevel=3)
     if total != len(W):
-        raise ValueError(f"the rig has {len(W)} vertices, the file's skinned meshes {total}")
+        raise ValueError(f"the rig has {len(W)} vertices, the file's meshes {total}")
     table = bone_table(sk, joints)
     for s in info.get("skins", []):
         skin = doc["skins"][int(s)]

@@ -13,6 +13,19 @@ How a glTF character becomes a rig
   warning). The mesh node's own transform is ignored, as the specification says for
   skinned meshes. ``rig.meta["gltf"]["primitives"]`` records where each primitive's
   vertices came from, so writing the rig back adds endpoint weights to each of them.
+- **Rigid parts.** A node with a mesh and no skin that is a joint of the skeleton or
+  lies below one (a robot's limbs hung on its bones) moves with its nearest such joint
+  ``j``: the file draws it at ``G_j L``, ``L`` the rest transforms of the nodes from
+  below ``j`` down to it. Its primitives follow the skinned ones in ``V`` (node order),
+  placed at ``B_j L`` (``B_j`` the joint's bind, the inverse of its inverse bind
+  matrix, as the skinned meshes are), so the joint's skin matrix ``G_j IBM_j`` moves
+  them exactly as the file does; their rows of ``W`` are 1 on bone ``j``; a mirroring
+  transform reverses their triangles' winding, as viewers do when drawing them.
+  ``rig.meta["gltf"]["rigid"]`` records each one (node, mesh, primitive, joint,
+  ``start``, ``count``). An animation that moves a node of ``L`` is warned about when
+  its clip is decoded (the part then follows its joint only). Meshes under no joint
+  (props, scenery) are not read; ``rigid=False`` leaves the rigid parts out, and so
+  does ``mesh=``.
 - **Bones.** One bone per joint node of those skins (their union, in the order the
   skins list them), named after the node (``node<k>`` for an unnamed one or a name
   shared by several joints), starting at the joint's *bind* position (from the inverse
@@ -22,9 +35,10 @@ How a glTF character becomes a rig
   brings its own bone table back (:mod:`stbs.io.gltf.bones`).
 - ``W`` has one column per bone, from every ``JOINTS_n``/``WEIGHTS_n`` set, each row
   divided by its sum (the renormalisation engines apply to quantised weights); ``E``
-  from ``_ENDPOINT_WEIGHTS_n`` (as stbs writes them), else None. When several skins
-  bind the same joint differently, a vertex is moved to where the first skin's bind
-  puts it (its rest pose in the file), so one bind serves all.
+  from ``_ENDPOINT_WEIGHTS_n`` (as stbs writes them), else None; a rigid part, which
+  the write-back leaves as it was, gets eq. 8's projection onto its bone. When several
+  skins bind the same joint differently, a vertex is moved to where the first skin's
+  bind puts it (its rest pose in the file), so one bind serves all.
 - **Clips.** One per animation, decoded only when asked for (the mapping returned is
   lazy): see :mod:`stbs.io.gltf.animation` for how ``clip.pose(t)`` equals the file's
   node hierarchy at any time.
@@ -266,7 +280,39 @@ def _names(scene: Scene, nodes: list[int]) -> list[str]:
     return out
 
 
-def _read(f: GltfFile, skin, mesh) -> tuple[Rig, Scene, Joints]:
+def _primitives(f: GltfFile, node: int, m: int):
+    """(index, label, attributes, V, F) of each triangle primitive of mesh ``m`` drawn by
+    ``node``: POSITION with the default morph weights applied, and the triangles; points
+    and lines are skipped with a warning."""
+    mobj = f.item("meshes", m, f"node {node} mesh")
+    nobj = f.items("nodes")[node]
+    for k, prim in enumerate(f.get(mobj, "primitives", "array", f"meshes[{m}]")):
+        what = f"mesh {m} primitive {k}"
+        if not isinstance(prim, dict):
+            raise f.error(f"{what}: a JSON object", repr(prim)[:40])
+        at = f.get(prim, "attributes", "object", what)
+        if "POSITION" not in at:
+            raise f.error(f"{what}: a POSITION attribute", "none")
+        V = read_accessor(f, at["POSITION"], f"{what} POSITION", types=("VEC3",))
+        F = _triangles(f, prim, what, len(V))
+        if F is None:
+            # stacklevel: this generator, _read, read_gltf, its caller
+            warnings.warn(f"{str(f.path)!r}: {what} is points or lines (mode "
+                          f"{prim.get('mode')}); skipped", UserWarning, stacklevel=4)
+            continue
+        yield k, what, at, _morphed(f, prim, nobj, f.items("meshes")[m], V, what), F
+
+
+def _placed(V: np.ndarray, F: np.ndarray, X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Vertices mapped by the 4x4 ``X``, and the triangles' winding kept facing out: a
+    mirroring ``X`` (negative determinant) reverses it, as viewers do when drawing."""
+    V = V @ X[:3, :3].T + X[:3, 3]
+    if np.linalg.det(X[:3, :3]) < 0:
+        F = F[:, [0, 2, 1]]
+    return V, F
+
+
+def _read(f: GltfFile, skin, mesh, rigid: bool = True) -> tuple[Rig, Scene, Joints]:
     req = f.get(f.doc, "extensionsRequired", "array", "glTF", [])
     bad = [e for e in req if e in _UNSUPPORTED]
     if bad:
@@ -306,30 +352,14 @@ def _read(f: GltfFile, skin, mesh) -> tuple[Rig, Scene, Joints]:
     # ---- geometry
     Vs, Fs, Ws, Es, prims = [], [], [], [], []
     off = 0
-    meshes = f.items("meshes")
     for node, m, s in chosen:
         joints_s = scene.skin_joints(s)
         to_bone = np.array([col[j] for j in joints_s])
         # where this skin's bind differs from the first's: X_j = B_j IBM_s,j
         X = bind[to_bone] @ scene.inverse_binds(s)
         moved = not np.allclose(X, np.eye(4), atol=1e-9 * max(1.0, np.abs(X).max()))
-        mobj = f.item("meshes", m, f"node {node} mesh")
-        nobj = f.items("nodes")[node]
-        for k, prim in enumerate(f.get(mobj, "primitives", "array", f"meshes[{m}]")):
-            what = f"mesh {m} primitive {k}"
-            if not isinstance(prim, dict):
-                raise f.error(f"{what}: a JSON object", repr(prim)[:40])
-            at = f.get(prim, "attributes", "object", what)
-            if "POSITION" not in at:
-                raise f.error(f"{what}: a POSITION attribute", "none")
-            V = read_accessor(f, at["POSITION"], f"{what} POSITION", types=("VEC3",))
+        for k, what, at, V, F in _primitives(f, node, m):
             n = len(V)
-            F = _triangles(f, prim, what, n)
-            if F is None:
-                warnings.warn(f"{str(f.path)!r}: {what} is points or lines (mode "
-                              f"{prim.get('mode')}); skipped", UserWarning, stacklevel=3)
-                continue
-            V = _morphed(f, prim, nobj, meshes[m], V, what)
             W, E = primitive_weights(f, at, n, to_bone, b, what)
             tot = W.sum(axis=1)
             if moved:
@@ -344,16 +374,44 @@ def _read(f: GltfFile, skin, mesh) -> tuple[Rig, Scene, Joints]:
             prims.append({"node": int(node), "mesh": int(m), "primitive": k, "skin": int(s),
                           "start": off, "count": n})
             off += n
-    if not Vs:
-        raise f.error("a skinned mesh with triangles", "points and lines only")
-    V = np.vstack(Vs)
-    F = np.vstack(Fs)
-    W = np.vstack(Ws)
     E = None
     if any(e is not None for e in Es):
         if any(e is None for e in Es):
             raise f.error("_ENDPOINT_WEIGHTS_0 on every primitive or on none", "on some only")
         E = np.vstack(Es)
+
+    # ---- meshes hung rigidly on a joint: drawn at N_node = G_j L (L: the nodes from
+    # below joint j down to the mesh node), so placing them at B_j L (B_j = IBM_j^-1,
+    # the bind the skinned meshes use) makes the skin matrix G_j IBM_j draw them at
+    # G_j L at any time, exactly
+    parts: list[dict] = []
+    carried: dict[int, tuple[int, int]] = {}
+    for node, m, joint, chain in (scene.attached(set(col)) if rigid and mesh is None
+                                  else []):
+        L = np.eye(4)
+        for x in chain:
+            L = L @ scene.local[x]
+        X = bind[col[joint]] @ L
+        for x in chain:
+            carried[x] = (node, col[joint])
+        for k, what, _, V, F in _primitives(f, node, m):
+            n = len(V)
+            V, F = _placed(V, F, X)
+            f.reserve(n * b * 8 * (2 + (E is not None)),
+                      f"{what}: weights of {n} vertices over {b} joints")
+            W = np.zeros((n, b))
+            W[:, col[joint]] = 1.0
+            Vs.append(V)
+            Fs.append(F + off)
+            Ws.append(W)
+            parts.append({"node": int(node), "mesh": int(m), "primitive": k,
+                          "joint": int(joint), "start": off, "count": n})
+            off += n
+    if not Vs:
+        raise f.error("a skinned mesh with triangles", "points and lines only")
+    V = np.vstack(Vs)
+    F = np.vstack(Fs)
+    W = np.vstack(Ws)
     # Skin matrices G_j IBM_j that all scale by one factor c at rest (inverse binds
     # made in a mesh's own units, under an "armature" node scaled by c) cannot pose
     # rigid bones: the rig is then moved by Y, the root's skin matrix at rest (a
@@ -370,7 +428,7 @@ def _read(f: GltfFile, skin, mesh) -> tuple[Rig, Scene, Joints]:
     names = _names(scene, nodes)
     meta = {"gltf": {"file": f.path.name, "skins": [int(s) for s in skins],
                      "joints": [int(j) for j in nodes], "primitives": prims,
-                     "select": {"skin": skin, "mesh": mesh}}}
+                     "rigid": parts, "select": {"skin": skin, "mesh": mesh, "rigid": rigid}}}
     A = bind[:, :3, 3]
     size = float(np.linalg.norm(np.ptp(np.vstack([V, A]), axis=0))) or 1.0
     sk = read_bone_table(f, skins, nodes, A, parent, size)
@@ -382,12 +440,23 @@ def _read(f: GltfFile, skin, mesh) -> tuple[Rig, Scene, Joints]:
     except ValueError as exc:
         raise f.error("joints whose bind positions make a skeleton", str(exc)) from None
     if E is not None:
+        if parts:
+            # a rigid part keeps no endpoint weights in the file (it is written back as
+            # it was): eq. 8's projection onto its bone (stbs.weights imported only here:
+            # it is heavy, and reading a rig needs it only in this case)
+            from ...weights.endpoint import projection
+
+            rows = np.arange(len(E), len(V))
+            E = np.vstack([E, np.zeros((len(rows), b))])
+            cols = np.argmax(W[rows], axis=1)
+            E[rows, cols] = projection(rig.V[rows], rig.skeleton)[np.arange(len(rows)), cols]
         rig = rig.replace(E=E)
-    return rig, scene, Joints(nodes=nodes, ibm=IBM, skeleton=rig.skeleton)
+    return rig, scene, Joints(nodes=nodes, ibm=IBM, skeleton=rig.skeleton, carried=carried)
 
 
 def read_gltf(path: str | os.PathLike, *, skin: int | str | None = None,
-              mesh: int | str | None = None) -> tuple[Rig, Mapping[str, Clip]]:
+              mesh: int | str | None = None, rigid: bool = True
+              ) -> tuple[Rig, Mapping[str, Clip]]:
     """Read a skinned character and its animations from a glTF 2.0 file.
 
     Parameters
@@ -399,15 +468,22 @@ def read_gltf(path: str | os.PathLike, *, skin: int | str | None = None,
         it. Default: the first skinned mesh's skeleton (with a warning listing the
         others when the file holds several).
     mesh : int or str, optional
-        Read this skinned mesh alone (node index or name, or mesh index or name).
+        Read this skinned mesh alone (node index or name, or mesh index or name), without
+        the rigid parts.
+    rigid : bool, default True
+        Read the meshes hung rigidly on the skeleton's joints too (nodes with a mesh and
+        no skin below a joint: a robot's limbs, a helmet on a head), each moving with
+        its nearest joint; False reads the skinned meshes only.
 
     Returns
     -------
     rig : Rig
-        3D; ``V``, ``F``, the skeleton (one bone per joint, see the module docs), ``W``;
-        ``E`` from ``_ENDPOINT_WEIGHTS_n`` where the file has them, else None.
+        3D; ``V``, ``F``, the skeleton (one bone per joint, see the module docs), ``W``
+        (a rigid part's rows: 1 on its joint's bone); ``E`` from ``_ENDPOINT_WEIGHTS_n``
+        where the file has them (a rigid part's: eq. 8's projection), else None.
         ``rig.meta["gltf"]`` records the file, the skins, the joint node of each bone and
-        where each primitive's vertices came from.
+        where each primitive's vertices came from (``primitives``: the skinned ones,
+        then ``rigid``: the rigid parts, each with its ``joint`` node).
     clips : Mapping of str to Clip
         One per animation, by name (``"animation_K"`` when unnamed), in file order,
         decoded on first access (:class:`GltfAnimations`).
@@ -424,7 +500,9 @@ def read_gltf(path: str | os.PathLike, *, skin: int | str | None = None,
     ValueError
         ``skin=`` or ``mesh=`` matching no skinned mesh (the message lists them).
     """
+    if not isinstance(rigid, (bool, np.bool_)):
+        raise TypeError(f"rigid must be True or False, got {rigid!r}")
     suffix(path, GLTF_EXTENSIONS, "read_gltf")
     f = GltfFile(path)
-    rig, scene, joints = _read(f, skin, mesh)
+    rig, scene, joints = _read(f, skin, mesh, bool(rigid))
     return rig, GltfAnimations(f, scene, joints)

@@ -3,7 +3,8 @@
 :class:`Scene` checks the nodes once (every child index in range, no node with two
 parents, no cycle), keeps each node's rest transform as translation, rotation and
 scale (a ``matrix`` is split into them), and answers the questions the reader asks:
-which skinned meshes there are, which joints a skin has, where they sit.
+which skinned meshes there are, which meshes hang on joints without a skin, which
+joints a skin has, where they sit.
 """
 
 from __future__ import annotations
@@ -174,8 +175,8 @@ class Scene:
         return self.names[k] or f"node{k}"
 
     # ------------------------------------------------------------------ skins
-    def skinned_nodes(self) -> list[tuple[int, int, int]]:
-        """(node, mesh, skin) of every node with both a mesh and a skin, in node order."""
+    def mesh_nodes(self) -> list[tuple[int, int, int | None]]:
+        """(node, mesh, skin or None) of every node with a mesh, in node order."""
         f = self.f
         out = []
         nm, ns = len(f.items("meshes")), len(f.items("skins"))
@@ -183,8 +184,31 @@ class Scene:
             node = f.items("nodes")[k]
             mesh = f.get(node, "mesh", "index", f"nodes[{k}]", None, below=nm)
             skin = f.get(node, "skin", "index", f"nodes[{k}]", None, below=ns)
-            if mesh is not None and skin is not None:
+            if mesh is not None:
                 out.append((k, mesh, skin))
+        return out
+
+    def skinned_nodes(self) -> list[tuple[int, int, int]]:
+        """(node, mesh, skin) of every node with both a mesh and a skin, in node order."""
+        return [c for c in self.mesh_nodes() if c[2] is not None]
+
+    def attached(self, joints) -> list[tuple[int, int, int, list[int]]]:
+        """Meshes hung rigidly on ``joints`` (a set of node indices): (node, mesh, joint,
+        chain) of every node with a mesh and no skin that is one of ``joints`` or lies
+        below one, in node order; ``joint`` is the nearest such node (itself or above),
+        ``chain`` the nodes from just below ``joint`` down to ``node`` (empty when the
+        node is the joint)."""
+        out = []
+        for k, mesh, skin in self.mesh_nodes():
+            if skin is not None:
+                continue
+            chain = []
+            x = k
+            while x >= 0 and x not in joints:
+                chain.append(x)
+                x = int(self.parent[x])
+            if x >= 0:
+                out.append((k, mesh, x, chain[::-1]))
         return out
 
     def skin_joints(self, s: int) -> list[int]:
