@@ -53,24 +53,33 @@ def test_rig_3d_bbw_tetrahedralized(shared_data, tmp_path):
 
 
 @pytest.mark.slow
-def test_rig_elephant_with_its_tips_clipped(shared_data, tmp_path, capsys):
+def test_rig_elephant_with_its_tips_outside(shared_data, tmp_path, capsys):
     # elephant.tgf's trunk and tail tips poke out of the skin by 0.05 and 0.11.
     d = shared_data / "libigl-tutorial-data"
     out = tmp_path / "elephant.npz"
     args = ["rig", str(d / "elephant.obj"), str(d / "elephant.tgf"), "-o", str(out)]
-    assert main(args) == 2
+    # the default (winding-number volume): the tips are left out, with a warning
+    assert main(args) == 0
+    err = capsys.readouterr().err
+    assert "warning: volume mesh: 2 bone(s) leave the shape (bone 5 ('bone5', joints " \
+        "5->6): 6 % outside, up to 0.0452; bone 18 ('bone18', joints 18->19)" in err
+    rig = check_rig(out, 6034, 24)
+    # Against the weights shipped with the model (libigl's tutorial): same dominant
+    # bone on most of the surface (measured 0.88).
+    ref = stbs.io.read_dmat(d / "elephant-weights.dmat")
+    assert (np.argmax(rig.W, axis=1) == np.argmax(ref, axis=1)).mean() > 0.8
+    # tetrahedra through the surface's vertices: the tips are an error unless clipped
+    conforming = [*args, "--tets", "conforming"]
+    assert main(conforming) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "outside the surface by 0.0452" in err[0]
-    assert "--clip-skeleton" in err[0] and not out.exists()
-    assert main([*args, "--clip-skeleton"]) == 0
+    assert "--clip-skeleton" in err[0]
+    assert main([*conforming, "--clip-skeleton"]) == 0
     err = capsys.readouterr().err
     assert "warning: tetrahedralize: 2 skeleton point(s)" in err
     # The joints left out are outside the mesh: no nearest-vertex stand-in for them.
     assert "no mesh vertex lies on" not in err
     rig = check_rig(out, 6034, 24)
-    # Against the weights shipped with the model (libigl's tutorial): same dominant
-    # bone on most of the surface (measured 0.86).
-    ref = stbs.io.read_dmat(d / "elephant-weights.dmat")
     assert (np.argmax(rig.W, axis=1) == np.argmax(ref, axis=1)).mean() > 0.8
 
 
@@ -183,8 +192,8 @@ def test_weights_tol_without_bbw_is_an_error(shared_data, tmp_path, capsys):
     assert not (tmp_path / "x.npz").exists()
     assert main(["weights", str(rig_path), "--clip-skeleton", "-o", str(tmp_path / "x.npz")]) == 2
     err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and "--clip-skeleton applies when the bone weights are recomputed" \
-        in err[0]
+    assert len(err) == 1 and "--clip-skeleton applies when stbs meshes the shape: a 3D " \
+        "surface with --endpoint bbw or bbw-joints, or --bone bbw" in err[0]
     assert not (tmp_path / "x.npz").exists()
 
 

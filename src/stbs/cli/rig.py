@@ -12,13 +12,20 @@ HELP = "compute bone and endpoint weights for a mesh and skeleton; write a .npz 
 EXAMPLE = "stbs rig arm.obj arm.tgf -o arm.npz --bone bbw --endpoint bbw"
 DESCRIPTION = """\
 Turn a bare mesh and skeleton into a complete STBS rig (paper §2.3, §3):
-  1. meshing with the skeleton inside (--bone bbw): a 2D mesh's outline is
-     re-triangulated with the bones as constrained segments, a closed 3D surface is
-     tetrahedralized with the joints and bone samples inserted (--tets auto), or a
-     tetrahedral mesh is read (--tets FILE, surface vertices first, as in libigl's
-     .mesh files); bone heat (--bone heat) works on the 3D surface itself.
-     A skeleton poking out of the shape is an error unless --clip-skeleton; a
-     self-intersecting surface is meshed by the builtin mesher (by winding number);
+  1. meshing with the skeleton inside (--bone bbw, --endpoint bbw): a 2D mesh's
+     outline is re-triangulated with the bones as constrained segments; a 3D surface
+     (any: open, in parts, self-intersecting, non-manifold) gets a volume mesh of its
+     inside by winding number, edges about --tet-size long (default: about 12,000
+     vertices, finer in the hands), with the joints and bone samples inside as
+     vertices, and the weights are interpolated to the surface's vertices (--tets
+     winding); --tets conforming tetrahedralizes a closed, clean surface through its
+     own vertices instead; --tets auto (default) takes conforming for such a surface
+     of up to 5,000 vertices that holds the skeleton, else winding; --tets FILE reads
+     a tetrahedral mesh (surface vertices first, as in libigl's .mesh files). Bone
+     heat (--bone heat) works on the 3D surface, or a tetrahedral mesh's boundary.
+     With the winding volume the parts of the skeleton outside the shape are left
+     out with a warning naming the bones; in 2D and with --tets conforming that is an
+     error unless --clip-skeleton;
   2. bone weights W: bounded biharmonic weights or bone heat;
   3. endpoint weights E: projection (eq. 8), idw (eq. 9), heat, bbw (direct) or
      bbw-joints, each solved only where the bone's weight exceeds 1e-7.
@@ -53,10 +60,24 @@ def add_tol_argument(p: argparse.ArgumentParser) -> None:
 
 def add_clip_argument(p: argparse.ArgumentParser) -> None:
     p.add_argument("--clip-skeleton", action="store_true",
-                   help="bbw, when stbs meshes the shape (2D, or 3D with --tets auto): mesh "
-                        "only the skeleton's parts inside it (for bone tips poking out of the "
-                        "skin or past a traced image's edge); without it a joint outside is "
-                        "an error")
+                   help="bbw, when stbs meshes the shape (2D, or 3D with --tets conforming): "
+                        "mesh only the skeleton's parts inside it (for bone tips poking out of "
+                        "the skin or past a traced image's edge); without it a joint outside "
+                        "is an error. 3D --tets auto always does so (with a warning)")
+
+
+def add_tets_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--tets", default="auto", metavar="auto|winding|conforming|FILE",
+                   help="3D bbw: the volume the weights are solved on: a volume mesh of the "
+                        "surface's inside by winding number, weights interpolated to the "
+                        "surface (winding: any surface); tetrahedra through a closed, clean "
+                        "surface's own vertices (conforming); auto: conforming for such a "
+                        "surface of up to 5,000 vertices holding the skeleton, else (or with "
+                        "--tet-size) winding; or read tets from FILE")
+    p.add_argument("--tet-size", type=float, default=None, metavar="H",
+                   help="--tets auto/winding: the winding-number volume mesh's edge length, "
+                        "in the mesh's units (default: about 12,000 vertices, finer in the "
+                        "hands)")
 
 
 def resolve_tol(tol: float | None, bone: str, endpoint: str) -> float:
@@ -82,8 +103,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--bone", choices=BONE, default="bbw", help="bone weights (default: bbw)")
     p.add_argument("--endpoint", choices=ENDPOINT, default="bbw",
                    help="endpoint weights (default: bbw)")
-    p.add_argument("--tets", default="auto", metavar="auto|FILE",
-                   help="3D bbw: tetrahedralize the surface (auto) or read tets from FILE")
+    add_tets_arguments(p)
     add_clip_argument(p)
     p.add_argument("--threshold", type=float, default=None, metavar="T",
                    help="image MESH: the shape is where alpha (or, without alpha, the luma) "
@@ -167,8 +187,27 @@ class _Stages:
         return "\n".join(["stbs rig: time per stage", *rows, f"  {'total':<28} {total:8.2f} s"])
 
 
+#: --tets values that mesh the surface (the others name a file): build_rig's ``volume``.
+TETS_MESHERS = {"auto": "auto", "winding": "winding", "conforming": "conforming"}
+
+
+def check_tet_size(tet_size: float | None, tets: str) -> float | None:
+    """``--tet-size``: a positive number, with ``--tets auto`` only."""
+    from ._errors import CommandError
+
+    if tet_size is None:
+        return None
+    if not (math.isfinite(tet_size) and tet_size > 0):
+        raise CommandError(f"--tet-size: expected a positive number, got {tet_size!r}")
+    if tets not in ("auto", "winding"):
+        raise CommandError(f"--tet-size applies to --tets auto or winding (the winding-number "
+                           f"volume mesh), got --tets {tets}")
+    return float(tet_size)
+
+
 def build(st: _Stages, V, F, T, sk, *, bone: str, endpoint: str, tets: str, mesh_name: str,
-          tol: float = DEFAULT_TOL, clip_skeleton: bool = False, meshed: bool = False, W=None):
+          tol: float = DEFAULT_TOL, clip_skeleton: bool = False, meshed: bool = False, W=None,
+          tet_size: float | None = None):
     """:func:`stbs.build_rig` for the command line: ``--tets FILE`` read and checked, the
     stages timed; returns the rig (weights restricted to ``V``)."""
     from ..io import read_mesh
@@ -176,19 +215,24 @@ def build(st: _Stages, V, F, T, sk, *, bone: str, endpoint: str, tets: str, mesh
     from ._errors import CommandError
 
     n = len(V)
-    if clip_skeleton and (bone != "bbw" or tets != "auto" or T is not None):
+    tet_size = check_tet_size(tet_size, tets)
+    meshes = T is None and tets in TETS_MESHERS and (
+        (bone == "bbw" and W is None) or (V.shape[1] == 3 and endpoint in ("bbw", "bbw-joints")))
+    if clip_skeleton and not meshes:
         raise CommandError("--clip-skeleton applies when stbs meshes the shape itself "
-                           "(--bone bbw: a 2D mesh, or a 3D surface with --tets auto)")
-    if bone == "heat" and (V.shape[1] != 3 or F is None):
-        raise CommandError(f"--bone heat needs a 3D triangle surface; {mesh_name!r} is "
-                           f"{V.shape[1]}D" + ("" if F is not None else " without triangles"))
-    if endpoint == "heat" and (V.shape[1] != 3 or F is None):
-        raise CommandError("--endpoint heat needs a 3D triangle surface")
+                           "(--bone bbw: a 2D mesh, or a 3D surface with --tets auto, "
+                           "winding or conforming)")
+    if bone == "heat" and (V.shape[1] != 3 or (F is None and T is None)):
+        raise CommandError(f"--bone heat needs a 3D triangle surface or tetrahedra; "
+                           f"{mesh_name!r} is {V.shape[1]}D"
+                           + ("" if F is not None else " without triangles"))
+    if endpoint == "heat" and (V.shape[1] != 3 or (F is None and T is None)):
+        raise CommandError("--endpoint heat needs a 3D triangle surface or tetrahedra")
     if bone == "bbw" and W is None and V.shape[1] == 2 and F is None:
         raise CommandError(f"{mesh_name!r}: a 2D rig needs triangles to take the outline from")
     if bone == "bbw" and W is None and V.shape[1] == 3 and T is None and F is None:
-        raise CommandError(f"{mesh_name!r}: a 3D rig needs a closed triangle surface")
-    if tets != "auto" and W is None and bone == "bbw":
+        raise CommandError(f"{mesh_name!r}: a 3D rig needs a triangle surface or tetrahedra")
+    if tets not in TETS_MESHERS and W is None and bone == "bbw":
         tm = st.run("read tets", read_mesh, tets)
         if tm.T is None or len(tm.V) < n or not (tm.V[:n] == V).all():
             raise CommandError(f"--tets {tets!r}: expected tetrahedra whose first "
@@ -200,7 +244,8 @@ def build(st: _Stages, V, F, T, sk, *, bone: str, endpoint: str, tets: str, mesh
             E = st.pipeline(build_rig, V, sk, F=F, W=W, endpoint="heat").E
         return Rig(V=V, F=F, skeleton=sk, W=W, E=E, meta={"bone": bone, "endpoint": endpoint})
     return st.pipeline(build_rig, V, sk, F=F, T=T, W=W, bone=bone, endpoint=endpoint, tol=tol,
-                       clip_skeleton=clip_skeleton, remesh=not meshed)
+                       clip_skeleton=clip_skeleton, remesh=not meshed,
+                       volume=TETS_MESHERS.get(tets, "auto"), volume_size=tet_size)
 
 
 def check_output(path: str, *, gltf: bool = False):
@@ -275,7 +320,8 @@ def requires(args: argparse.Namespace) -> list[str]:
 
 def rig_from_files(st: _Stages, mesh: str, skeleton: str, *, bone: str, endpoint: str,
                    tets: str, tol: float, clip_skeleton: bool, threshold: float = 0.5,
-                   invert: bool = False, max_area: float | None = None):
+                   invert: bool = False, max_area: float | None = None,
+                   tet_size: float | None = None):
     """MESH (a mesh, a ``.poly`` outline or a picture) and SKELETON files -> a rig."""
     from ..geometry import polygons_area
     from ..io import read_mesh, read_skeleton
@@ -304,7 +350,8 @@ def rig_from_files(st: _Stages, mesh: str, skeleton: str, *, bone: str, endpoint
         V, F, T = m.V, m.F, m.T
         sk = st.run("read skeleton", read_skeleton, skeleton, dim=V.shape[1])
     rig = build(st, V, F, T, sk, bone=bone, endpoint=endpoint, tets=tets, mesh_name=mesh,
-                tol=tol, clip_skeleton=clip_skeleton and not outline, meshed=outline)
+                tol=tol, clip_skeleton=clip_skeleton and not outline, meshed=outline,
+                tet_size=tet_size)
     if outline and image is not None:
         texture = rgba(image)
         rig = rig.replace(texture=texture, UV=picture_uv(rig.V, texture.shape))
@@ -354,6 +401,7 @@ def run(args: argparse.Namespace) -> int:
         raise CommandError(f"--max-area: expected a positive number, got {args.max_area!r}")
     rig = rig_from_files(st, args.mesh, args.skeleton, bone=args.bone, endpoint=args.endpoint,
                          tets=args.tets, tol=tol, clip_skeleton=args.clip_skeleton,
+                         tet_size=args.tet_size,
                          threshold=0.5 if args.threshold is None else args.threshold,
                          invert=args.invert, max_area=args.max_area)
     st.run("write rig", save_rig, out, rig)

@@ -6,7 +6,7 @@ import argparse
 import sys
 
 from ._character import add_character_options
-from .rig import BONE, ENDPOINT, add_clip_argument, add_tol_argument
+from .rig import BONE, ENDPOINT, add_clip_argument, add_tets_arguments, add_tol_argument
 
 NAME = "weights"
 HELP = "recompute a rig's bone and/or endpoint weights; write a rig (.npz or glTF)"
@@ -15,7 +15,10 @@ DESCRIPTION = """\
 Recompute the weights of a rig written by 'stbs rig' or stbs.save_rig, or of a
 glTF 2.0 character (.gltf, .glb), with the same methods and meshing as 'stbs rig'
 (see 'stbs rig --help'). --bone keep keeps the rig's bone weights W and recomputes
-only the endpoint weights E. A glTF character written back as glTF keeps its file
+only the endpoint weights E (for --endpoint bbw, solved where each bone's weight
+exceeds 1e-7). Characters work as they come: open, in several parts,
+self-intersecting, non-manifold, with bones or leaf tails outside the mesh (a warning
+names them). A glTF character written back as glTF keeps its file
 as it was (skeleton, joint orientations, bone weights, animations, materials) and
 gains the endpoint weights (attribute _ENDPOINT_WEIGHTS_0, aligned with JOINTS_0).
 The output is written atomically and may be the input file itself."""
@@ -33,8 +36,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="bone weights: bbw, heat, or keep the rig's (default: keep)")
     p.add_argument("--endpoint", choices=ENDPOINT, default="bbw",
                    help="endpoint weights (default: bbw)")
-    p.add_argument("--tets", default="auto", metavar="auto|FILE",
-                   help="3D bbw: tetrahedralize the surface (auto) or read tets from FILE")
+    add_tets_arguments(p)
     add_clip_argument(p)
     add_tol_argument(p)
     add_character_options(p)
@@ -45,23 +47,34 @@ def run(args: argparse.Namespace) -> int:
     from ..rig import build_rig
     from ._character import character_options
     from ._errors import CommandError
-    from .rig import _Stages, build, check_output, resolve_tol
+    from .rig import TETS_MESHERS, _Stages, build, check_output, check_tet_size, resolve_tol
 
     out = check_output(args.output, gltf=True)
     tol = resolve_tol(args.tol, args.bone, args.endpoint)
+    tet_size = check_tet_size(args.tet_size, args.tets)
+    if args.bone == "keep" and args.tets not in TETS_MESHERS:
+        raise CommandError(f"--tets {args.tets!r}: a tetrahedra file applies when the bone "
+                           "weights are recomputed (--bone bbw); with --bone keep use --tets "
+                           "auto or conforming")
     st = _Stages()
     rig = st.run("read rig", read_rig, args.rig, **character_options(args))
     sk = rig.skeleton
     if args.bone == "keep":
-        if args.clip_skeleton:
-            raise CommandError("--clip-skeleton applies when the bone weights are "
-                               "recomputed with --bone bbw (the mesh is meshed again)")
+        # With the bone weights kept, stbs meshes only a 3D surface, for BBW endpoint
+        # weights (the winding-number volume leaves the skeleton's parts outside out
+        # by itself; --clip-skeleton is for the conforming mesh).
+        meshes = rig.T is None and rig.V.shape[1] == 3 and args.endpoint in ("bbw",
+                                                                             "bbw-joints")
+        if args.clip_skeleton and not meshes:
+            raise CommandError("--clip-skeleton applies when stbs meshes the shape: a 3D "
+                               "surface with --endpoint bbw or bbw-joints, or --bone bbw")
         new = st.pipeline(build_rig, rig.V, sk, F=rig.F, T=rig.T, W=rig.W,
-                          endpoint=args.endpoint, tol=tol)
+                          endpoint=args.endpoint, tol=tol, volume=TETS_MESHERS[args.tets],
+                          volume_size=tet_size, clip_skeleton=args.clip_skeleton and meshes)
     else:
         new = build(st, rig.V, rig.F, rig.T, sk, bone=args.bone, endpoint=args.endpoint,
                     tets=args.tets, mesh_name=args.rig, tol=tol,
-                    clip_skeleton=args.clip_skeleton)
+                    clip_skeleton=args.clip_skeleton, tet_size=tet_size)
     meta = dict(rig.meta or {}, endpoint=args.endpoint)
     if args.bone != "keep":
         meta["bone"] = args.bone

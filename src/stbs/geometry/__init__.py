@@ -19,6 +19,7 @@ function                   what it gives
 :func:`points_in_loops`    even-odd inclusion of 2D points in polygons
 :func:`polygons_area`      area inside polygons, holes subtracted by nesting
 :func:`winding_numbers`    generalised winding numbers of points for a 3D surface
+:class:`WindingTree`       the same, hierarchical: fast for many points and triangles
 :func:`cycles`             the cycles of a permutation (loops from successor arrays)
 =========================  ====================================================
 """
@@ -42,7 +43,8 @@ from ._polygon import points_in_loops, polygons_area, signed_area
 
 __all__ = ["unique_rows", "unique_edges", "boundary_faces", "boundary_loops",
            "face_normals", "vertex_normals", "triangle_areas", "tet_volumes",
-           "signed_area", "points_in_loops", "polygons_area", "winding_numbers", "cycles"]
+           "signed_area", "points_in_loops", "polygons_area", "winding_numbers", "WindingTree",
+           "cycles"]
 
 
 def winding_numbers(Q, V, F) -> np.ndarray:
@@ -75,3 +77,12 @@ def winding_numbers(Q, V, F) -> np.ndarray:
     from ._winding import winding_numbers as _wn
 
     return _wn(np.asarray(Q, dtype=np.float64).reshape(-1, 3), V, F)
+
+
+def __getattr__(name: str):
+    # The winding kernels are numba's: compiled code loads on first use, not on import.
+    if name == "WindingTree":
+        from ._winding import WindingTree
+
+        return WindingTree
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

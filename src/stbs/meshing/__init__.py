@@ -7,6 +7,9 @@ function                   what it does
                            constrained segments (Triangle, or builtin Ruppert)
 :func:`tetrahedralize`     closed surface -> tetrahedral mesh with joints and
                            bone samples as vertices (TetGen, or builtin lattice)
+:func:`volume_mesh`        any surface (open, parts, self-intersecting) -> a
+                           tetrahedral mesh of its inside by winding number, at
+                           a size of its own, skeleton points as vertices
 :func:`check_surface`      closed, manifold, oriented, not self-intersecting?
 :func:`outline_from_image` image mask -> polygons (marching squares)
 :func:`boundary_loops`     a 2D mesh's boundary loops (from :mod:`stbs.geometry`)
@@ -23,6 +26,8 @@ from .result import TetMesh, TriMesh
 from .surface import check_surface
 from .tetrahedra import ENGINES_3D, tetrahedralize
 from .triangulate import ENGINES_2D, triangulate_2d
+from .volume import VolumeMesh, volume_mesh
 
-__all__ = ["TriMesh", "TetMesh", "triangulate_2d", "tetrahedralize", "check_surface",
-           "outline_from_image", "boundary_loops", "ENGINES_2D", "ENGINES_3D"]
+__all__ = ["TriMesh", "TetMesh", "VolumeMesh", "triangulate_2d", "tetrahedralize",
+           "volume_mesh", "check_surface", "outline_from_image", "boundary_loops",
+           "ENGINES_2D", "ENGINES_3D"]

@@ -2,14 +2,17 @@
 
 1. Meshing with the skeleton inside (bounded biharmonic weights need the bones in the
    mesh): a 2D triangle mesh's outline is re-triangulated with the bones as constrained
-   segments, a closed 3D surface is tetrahedralized with the joints and bone samples
-   inserted; a tetrahedral mesh is used as it is. Bone heat works on the surface itself.
+   segments; a 3D surface of any kind gets a volume mesh of its inside by winding number
+   (:func:`stbs.meshing.volume_mesh`, the default) or, closed and clean, a tetrahedral
+   mesh through its own vertices (:func:`stbs.tetrahedralize`); a tetrahedral mesh is
+   used as it is. Bone heat works on the surface itself (a tetrahedral mesh's boundary).
 2. Bone weights ``W``: bounded biharmonic weights or bone heat.
 3. Endpoint weights ``E``: projection (eq. 8), inverse distance (eq. 9), heat, or
    bounded biharmonic (direct, or as joint weights), each solved only where the bone's
    weight exceeds 1e-7.
-4. Restriction to the user's vertices: weights of the vertices meshing inserted are
-   dropped, so the rig keeps the given ``V`` and ``F`` in their order.
+4. Back to the user's vertices: weights of the vertices meshing inserted are dropped,
+   or (the winding-number volume) the volume's weights are interpolated at them, so the
+   rig keeps the given ``V`` and ``F`` in their order.
 """
 
 from __future__ import annotations
@@ -21,15 +24,21 @@ from typing import Literal
 import numpy as np
 
 from .. import _checks
+from ..geometry import boundary_faces
 from ..skeleton import Skeleton
 from .model import Rig, _weights
 
-__all__ = ["build_rig", "BONE_METHODS", "ENDPOINT_METHODS", "DEFAULT_TOL"]
+__all__ = ["build_rig", "BONE_METHODS", "ENDPOINT_METHODS", "VOLUME_METHODS", "DEFAULT_TOL"]
 
 #: Bone weight methods of :func:`build_rig`.
 BONE_METHODS = ("bbw", "heat")
 #: Endpoint weight methods of :func:`build_rig`.
 ENDPOINT_METHODS = ("bbw", "bbw-joints", "heat", "projection", "idw")
+#: Volume meshes of a 3D surface for BBW (:func:`build_rig`'s ``volume``).
+VOLUME_METHODS = ("auto", "winding", "conforming")
+#: ``volume="auto"`` tries the conforming mesh on closed, clean surfaces of at most this
+#: many vertices (its cost grows with them; the winding volume's does not).
+AUTO_CONFORMING_MAX = 5000
 #: KKT tolerance of the rig's BBW solves: weights within about 1e-5 of the exact QP
 #: solution (2e-7 to 3e-6 measured on 5k-50k vertex meshes), up to 1.5x faster than 1e-10.
 DEFAULT_TOL = 1e-6
@@ -66,32 +75,70 @@ def _weld(V, F, W):
     return Vw, Fw, weld, Ww
 
 
-def _harmonic_extension(V, T, W):
-    """W (n, b) given on the first n of V's vertices, extended to the others by the
-    discrete Laplace equation on the tetrahedra, then clipped and rows normalised."""
+def _extend(V, T, W, known):
+    """W (n, b) given on the ``known`` vertices, extended to the others by the discrete
+    Laplace equation on the tetrahedra ``T``, then clipped and rows normalised."""
     import scipy.sparse as sp
     import scipy.sparse.linalg as spla
 
     from ..weights import cotmatrix
 
-    n = W.shape[0]
     Wd = W.toarray() if sp.issparse(W) else np.asarray(W, dtype=float)
-    if len(V) == n:
+    unknown = np.flatnonzero(~known)
+    if unknown.size == 0:
         return Wd
-    L = sp.csr_array(cotmatrix(V, T))
-    Lii = L[n:][:, n:].tocsc()
-    rhs = -(L[n:][:, :n] @ Wd)
+    L = sp.csr_array(cotmatrix(V, T, degenerate="skip"))
+    kn = np.flatnonzero(known)
+    Lii = L[unknown][:, unknown].tocsc()
+    rhs = -(L[unknown][:, kn] @ Wd[kn])
     X = spla.splu(Lii).solve(np.asarray(rhs))
     X = np.clip(X, 0.0, None)
     s = X.sum(axis=1, keepdims=True)
     X = np.where(s > 0, X / np.where(s > 0, s, 1), 1.0 / Wd.shape[1])
-    return np.vstack([Wd, X])
+    out = Wd.copy()
+    out[unknown] = X
+    return out
+
+
+def _harmonic_extension(V, T, W):
+    """W (n, b) given on the first n of V's vertices, extended to the others (:func:`_extend`)."""
+    known = np.zeros(len(V), dtype=bool)
+    known[:W.shape[0]] = True
+    Wd = np.zeros((len(V), W.shape[1]))
+    Wd[:W.shape[0]] = W.toarray() if hasattr(W, "toarray") else W
+    return _extend(V, T, Wd, known)
+
+
+def _to_volume(vm, V, W, interp, k: int = 8):
+    """Surface weights W (n, b) carried into the volume mesh ``vm`` (m, b): at each
+    volume vertex the largest weight of its ``k`` nearest surface vertices, and at the
+    vertices the surface interpolates from, at least the mean of what they carry. So
+    wherever a surface vertex has ``w_i > 0``, so do the vertices it interpolates
+    from (the endpoint solve's region covers it), and bone i's region reaches its
+    bone through the inside. Rows normalised."""
+    import scipy.sparse as sp
+    from scipy.spatial import cKDTree
+
+    Wd = W.toarray() if sp.issparse(W) else np.asarray(W, dtype=float)
+    _, nn = cKDTree(V).query(vm.V, k=min(k, V.shape[0]))
+    nn = nn.reshape(vm.V.shape[0], -1)
+    Wv = Wd[nn[:, 0]].copy()
+    for c in range(1, nn.shape[1]):
+        np.maximum(Wv, Wd[nn[:, c]], out=Wv)
+    mass = np.asarray(interp.sum(axis=0)).ravel()
+    carried = np.asarray(interp.T @ Wd)
+    layer = mass > 0
+    Wv[layer] = np.maximum(Wv[layer], carried[layer] / mass[layer, None])
+    s = Wv.sum(axis=1, keepdims=True)
+    return np.where(s > 0, Wv / np.where(s > 0, s, 1.0), 1.0 / Wd.shape[1])
 
 
 def build_rig(V, sk: Skeleton, *, F=None, T=None, W=None,
               bone: Literal["bbw", "heat"] = "bbw",
               endpoint: Literal["bbw", "bbw-joints", "heat", "projection", "idw"] = "bbw",
               tol: float = DEFAULT_TOL, clip_skeleton: bool = False, remesh: bool = True,
+              volume: Literal["auto", "winding", "conforming"] = "auto",
+              volume_size: float | None = None,
               progress: Progress | None = None) -> Rig:
     """A complete rig (bone and endpoint weights) of a mesh and skeleton.
 
@@ -100,30 +147,48 @@ def build_rig(V, sk: Skeleton, *, F=None, T=None, W=None,
     V : (n, d) float
         Rest vertex positions, d = ``sk.dim`` (2 or 3).
     sk : Skeleton
-        The skeleton, inside the shape (see ``clip_skeleton``).
+        The skeleton. With a 3D surface's winding-number volume its parts outside the
+        shape are left out with a ``UserWarning`` naming the bones; see
+        ``clip_skeleton`` for the other meshes.
     F : (f, 3) int, optional
-        Triangles: a 2D shape, or a closed 3D surface.
+        Triangles: a 2D shape, or a 3D surface (any: open, in several parts,
+        self-intersecting, non-manifold; closed for ``volume="conforming"``).
     T : (t, 4) int, optional
         Tetrahedra (3D), used as they are for bounded biharmonic weights; ``V`` then
-        holds every vertex of the tetrahedral mesh.
+        holds every vertex of the tetrahedral mesh. Bone heat then works on its
+        boundary surface (``F`` if given, else the boundary of ``T``).
     W : (n, b) float, optional
         Bone weights to keep (painted, or read from a file); only ``E`` is computed.
     bone : {"bbw", "heat"}
-        Bounded biharmonic weights (on a mesh with the skeleton inside), or bone heat
-        (Baran & Popović 2007; a 3D triangle surface ``F``).
+        Bounded biharmonic weights (on a volume mesh with the skeleton inside), or
+        bone heat (Baran & Popović 2007; a 3D triangle surface ``F``, or tetrahedra).
     endpoint : {"bbw", "bbw-joints", "heat", "projection", "idw"}
-        Endpoint weights (paper §2.2-2.3). ``heat`` needs a 3D triangle surface.
+        Endpoint weights (paper §2.2-2.3). ``heat`` needs a 3D surface or tetrahedra.
     tol : float
         KKT tolerance of the bounded biharmonic solves, in weight units (1e-10 gives
         the exact QP solution, up to 1.5x slower).
     clip_skeleton : bool
-        When stbs meshes the shape (bbw without ``T``): mesh only the skeleton's parts
-        inside it (for bone tips poking out of the skin); otherwise a joint outside is
-        an error.
+        When stbs meshes a 2D shape, or a 3D surface with ``volume="conforming"``:
+        mesh only the skeleton's parts inside it (for bone tips poking out of the
+        skin); otherwise a joint outside is an error. The 3D ``"winding"`` volume
+        always does so (the flag changes nothing there).
     remesh : bool
         2D: re-triangulate the outline of ``(V, F)`` with the bones inside (True), or
         solve on ``(V, F)`` as it is (False, for a mesh that already has the bones as
         vertices and edges, e.g. from :func:`stbs.triangulate_2d`).
+    volume : {"auto", "winding", "conforming"}
+        3D surface, BBW: the volume the weights are solved on. ``"winding"``:
+        :func:`stbs.meshing.volume_mesh`, the inside by generalised winding number at
+        a resolution of its own (``volume_size``), weights interpolated to the
+        surface's vertices; any surface. ``"conforming"``: :func:`stbs.tetrahedralize`,
+        tetrahedra through the surface's own vertices (a closed, clean surface with
+        the skeleton inside, or ``clip_skeleton``; the cost grows with its vertex
+        count). ``"auto"`` (default): conforming for a closed, clean surface of at
+        most :data:`AUTO_CONFORMING_MAX` vertices that holds the skeleton, else
+        winding (always winding when ``volume_size`` is given).
+    volume_size : float, optional
+        The winding-number volume's target edge length, in the mesh's units (None:
+        about :data:`stbs.meshing.volume.DEFAULT_VERTICES` vertices).
     progress : callable, optional
         ``progress(stage, done, total)``: each stage starts with ``(stage, 0, 0)``; the
         weight solves then report how many of their functions are done.
@@ -138,8 +203,8 @@ def build_rig(V, sk: Skeleton, *, F=None, T=None, W=None,
     ------
     ValueError
         A method that does not fit the mesh (bone heat in 2D, a 3D rig without a
-        surface or tetrahedra, ...), a skeleton outside the shape, or bad arrays; the
-        message names the argument.
+        surface or tetrahedra, ...), a skeleton outside the shape (2D, conforming 3D),
+        or bad arrays; the message names the argument.
 
     Examples
     --------
@@ -157,9 +222,14 @@ def build_rig(V, sk: Skeleton, *, F=None, T=None, W=None,
     n, d = V.shape
     _choice("bone", bone, BONE_METHODS)
     _choice("endpoint", endpoint, ENDPOINT_METHODS)
+    _choice("volume", volume, VOLUME_METHODS)
     tol = float(tol)
     if not (math.isfinite(tol) and tol > 0):
         raise ValueError(f"tol must be a positive number, got {tol!r}")
+    if volume_size is not None:
+        volume_size = float(volume_size)
+        if not (math.isfinite(volume_size) and volume_size > 0):
+            raise ValueError(f"volume_size must be a positive number, got {volume_size!r}")
     F = None if F is None else _checks.index_array("F", F, ndim=2, shape=(None, 3))
     T = None if T is None else _checks.index_array("T", T, ndim=2, shape=(None, 4))
     for name, X in (("F", F), ("T", T)):
@@ -176,44 +246,71 @@ def build_rig(V, sk: Skeleton, *, F=None, T=None, W=None,
             return lambda done, total: say(label, done, total)
         return None
 
-    if endpoint == "heat" and (d != 3 or F is None):    # checked before any work is done
-        raise ValueError("endpoint='heat' needs a 3D triangle surface F")
     keep_W = W is not None
+    heat_on = bone == "heat" and not keep_W
+    for what, method in (("bone", None if keep_W else bone), ("endpoint", endpoint)):
+        if method == "heat" and (d != 3 or (F is None and T is None)):  # before any work
+            raise ValueError(f"{what}='heat' needs a 3D triangle surface F"
+                             + (f"; got a {d}D mesh" if d != 3 else " (or tetrahedra T)"))
     if keep_W:
         W = _weights("W", W, n, sk.n_bones)
-    meshes_itself = ((not keep_W and bone == "bbw" and T is None and (d == 3 or remesh))
-                     or (keep_W and d == 3 and T is None and endpoint in ("bbw", "bbw-joints")))
+    bbw_endpoint = endpoint in ("bbw", "bbw-joints")
+    surface_3d = d == 3 and T is None
+    known_W = keep_W or heat_on
+    needs_volume = surface_3d and F is not None and (bbw_endpoint
+                                                     or (bone == "bbw" and not known_W))
+    winding = needs_volume and volume == "winding"
+    conforming = needs_volume and volume == "conforming"
+    meshes_itself = needs_volume or (d == 2 and not keep_W and bone == "bbw" and remesh)
     if clip_skeleton and not meshes_itself:
         raise ValueError("clip_skeleton applies when stbs meshes the shape itself (bone='bbw' "
                          "without T: a 2D mesh, or a 3D surface)")
-    if keep_W and endpoint in ("bbw", "bbw-joints") and F is None and T is None:
+    if keep_W and bbw_endpoint and F is None and T is None:
         raise ValueError(f"endpoint={endpoint!r} needs the mesh's triangles F or tetrahedra T")
-    weld = None
-    if keep_W and d == 3 and T is None and endpoint in ("bbw", "bbw-joints"):
+    if heat_on and T is not None:
+        # Bone heat lives on the surface: the tetrahedra's boundary, extended inside.
+        Fs = F if F is not None else boundary_faces(T)
+        stage("bone heat")
+        Ws = bone_heat(V, Fs, sk)
+        known = np.zeros(n, dtype=bool)
+        known[np.unique(Fs)] = True
+        if not known.all():
+            stage("extend the bone weights inside")
+            Ws = _extend(V, T, Ws, known)
+        W_surface = Ws
+    elif heat_on:
+        stage("bone heat")
+        W_surface = bone_heat(V, F, sk)
+    else:
+        W_surface = W if keep_W else None
+    weld = tet = None
+    if W_surface is not None and needs_volume:
+        # Real assets split vertices at texture and normal seams: weld exact duplicates
+        # for a conforming mesh, and give each copy its welded vertex's weight.
+        Vw, Fw, weld, Ww = _weld(V, F, W_surface)
+    if needs_volume and volume == "auto" and volume_size is not None:
+        volume, winding = "winding", True      # a size is the winding volume's
+    if needs_volume and volume == "auto":
+        tet = _try_conforming(Vw if weld is not None else V, Fw if weld is not None else F,
+                              sk, clip_skeleton, stage)
+        conforming, winding = tet is not None, tet is None
+    if winding:
+        return _winding_rig(V, F, sk, W_surface, keep_W, bone, endpoint, tol, volume_size,
+                            stage)
+    if W_surface is not None and conforming:
         # BBW endpoint weights solve on a volume: mesh the surface with the bones inside
         # as for bone weights, and extend the kept W harmonically to the new vertices
         # (the surface values stay exactly as given).
-        if F is None:
-            raise ValueError(f"endpoint={endpoint!r} in 3D needs a closed triangle surface F "
-                             "or tetrahedra T")
-        # Real assets split vertices at texture and normal seams: weld exact duplicates
-        # for the volume mesh, and give each copy its welded vertex's weight.
-        Vw, Fw, weld, Ww = _weld(V, F, W)
-        stage("tetrahedralize (bones inside)")
-        tet = tetrahedralize(Vw, Fw, sk, clip_skeleton=clip_skeleton)
+        if tet is None:
+            stage("tetrahedralize (bones inside)")
+            tet = tetrahedralize(Vw, Fw, sk, clip_skeleton=clip_skeleton)
         Vm, Fm, Tm = tet.V, Fw, tet.T
         stage("extend the bone weights inside")
         Wm = _harmonic_extension(Vm, Tm, Ww)
-    elif keep_W:
+    elif W_surface is not None:
         Vm, Fm, Tm = V, F, T
-        Wm = W
-    elif bone == "heat":
-        if d != 3 or F is None:
-            raise ValueError(f"bone='heat' needs a 3D triangle surface F; got a {d}D mesh"
-                             + ("" if F is not None else " without triangles"))
-        stage("bone heat")
-        Wm = bone_heat(V, F, sk)
-        Vm, Fm, Tm = V, F, None
+        Wm = W_surface
+        weld = None
     else:
         if d == 2:
             if F is None:
@@ -229,14 +326,23 @@ def build_rig(V, sk: Skeleton, *, F=None, T=None, W=None,
         else:
             if F is None:
                 raise ValueError("a 3D rig needs a closed triangle surface F or tetrahedra T")
-            stage("tetrahedralize (bones inside)")
-            tet = tetrahedralize(V, F, sk, clip_skeleton=clip_skeleton)
+            if tet is None:
+                stage("tetrahedralize (bones inside)")
+                tet = tetrahedralize(V, F, sk, clip_skeleton=clip_skeleton)
             Vm, Fm, Tm = tet.V, F, tet.T
         Wm = bone_weights(Vm, sk, method="bbw", F=Fm if Tm is None else None, T=Tm, tol=tol,
                           progress=stage("bone weights (bbw)", bar=True))
     if endpoint == "heat":
         stage("endpoint weights (heat)")
-        E = endpoint_weights(V, sk, method="heat", W=Wm[:n], F=F)
+        if F is None:                      # a tetrahedral mesh: on its boundary, extended
+            Fs = boundary_faces(T)
+            known = np.zeros(n, dtype=bool)
+            known[np.unique(Fs)] = True
+            E = endpoint_weights(V, sk, method="heat", W=Wm[:n], F=Fs)
+            if not known.all():
+                E = _extend_values(V, T, E, known)
+        else:
+            E = endpoint_weights(V, sk, method="heat", W=Wm[:n], F=F)
     elif endpoint in ("projection", "idw"):
         stage(f"endpoint weights ({endpoint})")
         E = endpoint_weights(V, sk, method=endpoint)
@@ -247,4 +353,92 @@ def build_rig(V, sk: Skeleton, *, F=None, T=None, W=None,
                              **elem)
         E = E[weld] if weld is not None else E[:n]
     meta = {"bone": "given" if keep_W else bone, "endpoint": endpoint}
-    return Rig(V=V, F=F, T=T, skeleton=sk, W=W if keep_W else Wm[:n], E=E, meta=meta)
+    W_out = W_surface if W_surface is not None else Wm[:n]
+    return Rig(V=V, F=F, T=T, skeleton=sk, W=W_out, E=E, meta=meta)
+
+
+def _try_conforming(V, F, sk, clip_skeleton, stage):
+    """``volume="auto"``: the conforming tetrahedral mesh of a small, closed, clean
+    surface that holds the skeleton (or ``clip_skeleton``), else None (the
+    winding-number volume is used)."""
+    import warnings
+
+    from ..meshing import check_surface, tetrahedralize
+
+    if V.shape[0] > AUTO_CONFORMING_MAX:
+        return None
+    try:
+        check_surface(V, F)
+    except ValueError:
+        return None
+    stage("tetrahedralize (bones inside)")
+    try:
+        with warnings.catch_warnings():
+            # a clipped skeleton's warning still reaches the caller; TetGen's fallback
+            # to the builtin mesher is an implementation detail here
+            warnings.filterwarnings("ignore", message="tetrahedralize: TetGen failed")
+            return tetrahedralize(V, F, sk, self_intersections=False,
+                                  clip_skeleton=clip_skeleton)
+    except ValueError:
+        return None
+
+
+def _extend_values(V, T, X, known):
+    """Values X (n, k) known on ``known`` vertices, harmonic inside (no normalisation)."""
+    import scipy.sparse as sp
+    import scipy.sparse.linalg as spla
+
+    from ..weights import cotmatrix
+
+    unknown = np.flatnonzero(~known)
+    kn = np.flatnonzero(known)
+    L = sp.csr_array(cotmatrix(V, T, degenerate="skip"))
+    X = np.array(X, dtype=float)
+    X[unknown] = spla.splu(L[unknown][:, unknown].tocsc()).solve(
+        np.asarray(-(L[unknown][:, kn] @ X[kn])))
+    return np.clip(X, 0.0, 1.0)
+
+
+def _winding_rig(V, F, sk, W_surface, keep_W, bone, endpoint, tol, volume_size, stage) -> Rig:
+    """A 3D surface's rig on its winding-number volume mesh (:func:`volume_mesh`):
+    solve there, interpolate to the surface's vertices."""
+    from ..meshing.volume import volume_mesh
+    from ..weights import endpoint_weights
+    from ..weights.bbw import BBWSolver
+    from ..weights.endpoint import bbw_endpoint
+
+    stage("volume mesh")
+    vm = volume_mesh(V, F, sk, size=volume_size)
+    interp = vm.interpolation(V)
+    if W_surface is None:
+        b, bc, _ = vm.boundary_conditions(sk)
+        stage("bone weights: Laplacian")
+        solver = BBWSolver(vm.V, vm.T, degenerate="skip")
+        Wv = solver.solve(b, bc, tol=tol, progress=stage("bone weights (bbw)", bar=True))
+        s = Wv.sum(axis=1)
+        if np.any(s <= 1e-12):
+            i = int(np.argmin(s))
+            raise ValueError(f"BBW left volume vertex {i} at {vm.V[i].tolist()} with all "
+                             "weights 0")
+        Wv /= s[:, None]
+        stage("transfer to the surface")
+        W = np.asarray(interp @ Wv)
+    else:
+        stage("transfer into the volume")
+        Wv = _to_volume(vm, V, W_surface, interp)
+        W = W_surface
+    if endpoint in ("bbw", "bbw-joints"):
+        # A bone with fewer than two points inside the shape has nothing to spread e
+        # from 0 to 1 along: it keeps the projection (eq. 8), as said in the warning.
+        inside = np.flatnonzero(vm.bone_points(sk) >= 2)
+        Ev = bbw_endpoint(vm.V, sk, W=Wv, T=vm.T, tol=tol, joints=endpoint == "bbw-joints",
+                          bones=inside,
+                          progress=stage(f"endpoint weights ({endpoint})", bar=True))
+        stage("transfer to the surface")
+        E = np.clip(np.asarray(interp @ Ev), 0.0, 1.0)
+    else:
+        stage(f"endpoint weights ({endpoint})")
+        E = endpoint_weights(V, sk, method=endpoint, **(
+            dict(W=W, F=F) if endpoint == "heat" else {}))
+    meta = {"bone": "given" if keep_W else bone, "endpoint": endpoint}
+    return Rig(V=V, F=F, T=None, skeleton=sk, W=W, E=E, meta=meta)

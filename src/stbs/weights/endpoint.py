@@ -18,7 +18,6 @@ bone weight ``W[:, i] > threshold`` (paper §3, 1e-7), when ``W`` is given.
 
 from __future__ import annotations
 
-import sys
 import threading
 import warnings
 from concurrent.futures import ThreadPoolExecutor, as_completed
@@ -433,7 +432,7 @@ def _bone_workers(BBWSolver, b: int) -> int:
 
 def bbw_endpoint(V, sk: Skeleton, *, T=None, F=None, W=None,
                  threshold: float | None = DEFAULT_THRESHOLD, joints: bool = False,
-                 tol: float = BBW_TOL, progress=None) -> np.ndarray:
+                 tol: float = BBW_TOL, progress=None, bones=None) -> np.ndarray:
     """Bounded biharmonic endpoint weights, solved directly or as joint weights.
 
     Parameters
@@ -460,6 +459,8 @@ def bbw_endpoint(V, sk: Skeleton, *, T=None, F=None, W=None,
         KKT tolerance of each BBW solve (:meth:`stbs.weights.BBWSolver.solve`).
     progress : callable, optional
         ``progress(done, total)`` after each bone.
+    bones : sequence of int, optional
+        Solve only these bones; the others keep the projection (eq. 8). None: all.
 
     Returns
     -------
@@ -468,7 +469,8 @@ def bbw_endpoint(V, sk: Skeleton, *, T=None, F=None, W=None,
     Notes
     -----
     Joints without a mesh vertex on them use their nearest vertex, with a warning
-    giving the distance (``ON_BONE_TOL`` of the bounding-box diagonal counts as on).
+    giving the distance (``ON_BONE_TOL`` of the bounding-box diagonal counts as on);
+    a bone whose two joints would both be held at one vertex is an error naming them.
     """
     V = _checks.skeleton(sk, V)
     threshold = _threshold(threshold)
@@ -480,17 +482,24 @@ def bbw_endpoint(V, sk: Skeleton, *, T=None, F=None, W=None,
     E = projection(V, sk)
     restrict = W is not None and threshold is not None
     cache: dict = {}
+    if bones is None:
+        todo = list(range(b))
+    else:
+        todo = np.unique(_checks.index_array("bones", bones, ndim=1)).tolist()
+        if todo and (todo[0] < 0 or todo[-1] >= b):
+            raise ValueError(f"bones must hold bone indices in 0..{b - 1}, got {bones!r}")
     used = np.unique(Ele)     # vertices in no element cannot carry a constraint
     jv, far = _joint_vertices(V, used, sk, on_tol,
-                              range(sk.n_joints) if joints else np.unique(sk.BE))
-    try:
-        cand, ks = _unique_joint_vertices(jv)
-    finally:
-        if joints or sys.exc_info()[0] is not None:   # else: said per bone, below
+                              range(sk.n_joints) if joints
+                              else np.unique(sk.BE[todo]) if todo else [])
+    if joints:
+        try:
+            cand, ks = _unique_joint_vertices(jv)
+        finally:
             _warn_nearest(far)
     nearest: dict[int, str] = {}
     outside: dict[int, bool] = {}     # joints with no vertex: outside the mesh? (lazily)
-    if joints and not restrict:
+    if joints and not restrict and len(todo) == b:
         # One solve for all joints on the whole mesh, then eq. 7.
         bidx = cand
         bc = np.zeros((len(bidx), sk.n_joints))
@@ -503,7 +512,7 @@ def bbw_endpoint(V, sk: Skeleton, *, T=None, F=None, W=None,
             progress(b, b)
         return E
     tasks = []
-    for i in range(b):
+    for i in todo:
         a, e = (int(k) for k in sk.BE[i])
         if joints:
             bidx, vals = cand, np.zeros((len(cand), 2))
@@ -513,6 +522,7 @@ def bbw_endpoint(V, sk: Skeleton, *, T=None, F=None, W=None,
             on, t = _on_bone(V, used, sk, i, on_tol)
             val = dict(zip(on.tolist(), t.tolist(), strict=True))
             own = on.size >= 2 and float(np.ptp(t)) > 0.0
+            held = []
             for k, value in ((a, 0.0), (e, 1.0)):
                 # A joint with no vertex on it: its nearest vertex stands in, unless the
                 # joint lies outside the mesh and the bone has vertices of its own (a
@@ -521,8 +531,14 @@ def bbw_endpoint(V, sk: Skeleton, *, T=None, F=None, W=None,
                     outside[k] = not _in_elements(V, Ele, sk.C[k])
                 if k not in far or not (own and outside[k]):
                     val[jv[k]] = value
+                    held.append(k)
                     if k in far:
                         nearest[k] = far[k]
+            if len(held) == 2 and jv[a] == jv[e]:
+                _warn_nearest(nearest)
+                raise ValueError(f"joints {a} and {e} map to the same mesh vertex {jv[a]}; "
+                                 f"BBW endpoint weights of bone {i} ({sk.names[i]!r}) need a "
+                                 "vertex per joint (refine the mesh)")
             bidx = np.fromiter(val.keys(), dtype=np.int64)
             vals = np.fromiter(val.values(), dtype=float)[:, None]
         mask = None
@@ -544,9 +560,9 @@ def bbw_endpoint(V, sk: Skeleton, *, T=None, F=None, W=None,
     def store(done, i, verts, X):
         E[verts, i] = X[:, 0] if not joints else 0.5 * ((1.0 - X[:, 0]) + X[:, 1])
         if progress is not None:
-            progress(done, b)
+            progress(done, len(todo))
 
-    workers = _bone_workers(BBWSolver, b)
+    workers = _bone_workers(BBWSolver, len(tasks))
     if workers > 1:
         # Bones on separate threads, one solver thread each: the per-bone regions are
         # independent, and whole factorizations overlap better than split solves.
