@@ -208,7 +208,7 @@ def test_poses_for_many_times_equal_one_at_a_time():
         np.testing.assert_allclose(sig[k], p.stretch, atol=1e-15)
         np.testing.assert_allclose(th[k], p.twist, atol=1e-15)
     # a key comes back as given
-    for (t, pose), Rk, Ok in zip(keys, *clip.arrays([t for t, _ in keys])[:2], strict=True):
+    for (_t, pose), Rk, Ok in zip(keys, *clip.arrays([t for t, _ in keys])[:2], strict=True):
         np.testing.assert_allclose(Rk, pose.rotations, atol=1e-12)
         np.testing.assert_allclose(Ok, pose.origins, atol=1e-12)
 

@@ -70,7 +70,7 @@ import numpy as np
 
 from .. import _checks
 from .. import transforms as tf
-from ..pose import Pose, forward_kinematics
+from ..pose import Pose
 from ..skeleton import Skeleton
 
 __all__ = ["read_pose", "write_pose", "pose_to_dict", "POSE_FORMS", "JOINTS_KEYS", "FK_KEYS"]
@@ -306,10 +306,10 @@ def pose_to_dict(pose: Pose, *, form: str = "auto", degrees: bool = True) -> dic
     pose : Pose
     form : {"auto", "fk", "joints"}
         ``"fk"``: the forward-kinematics form (local rotations, stretch, twists,
-        translations), which describes every pose exactly. ``"joints"``: the posed joints and absolute twists,
-        which exists when shared joints agree and every rotation is the smallest one
-        from the rest to the posed direction (no roll about the bone). ``"auto"``:
-        the first of the two that describes the pose exactly.
+        translations), which describes every pose exactly. ``"joints"``: the posed
+        joints and absolute twists, which exists when shared joints agree and every
+        rotation is the smallest one from the rest to the posed direction (no roll
+        about the bone). ``"auto"``: the forward-kinematics form.
     degrees : bool
         Angles in degrees (``"degrees": true``) or radians.
 
