@@ -7,19 +7,23 @@ tails, a root joint on the floor). :func:`volume_mesh` meshes the *inside* of su
 surface, defined by its generalised winding number (Jacobson et al. 2013: > 1/2
 inside), at a resolution of its own:
 
-1. points: the surface sampled every ``size`` (its vertices and points on its large
-   triangles, one per voxel of side ``size``), the skeleton's joints and bone samples
-   that lie inside, and a body-centred cubic lattice of spacing ``size`` inside;
-2. their Delaunay tetrahedralization (:class:`scipy.spatial.Delaunay`);
-3. the tetrahedra whose centroid has winding number > 1/2 are kept (fast winding
-   numbers, :class:`stbs.geometry.WindingTree`), flat ones left out, every skeleton
-   point kept in some tetrahedron, and parts that hold no skeleton point dropped.
+1. a spacing: cubes of side ``size`` over the shape, halved (up to ``refine`` times)
+   where bones lie close together or the shape is thin, graded 2:1;
+2. points: the skeleton's joints and bone samples that lie inside, the surface sampled
+   at the local spacing (its vertices and points on its large triangles, one per
+   voxel), and a body-centred cubic lattice inside at the local spacing;
+3. their Delaunay tetrahedralization (:class:`scipy.spatial.Delaunay`);
+4. the tetrahedra whose centroid has winding number > 1/2 are kept (fast winding
+   numbers, :class:`stbs.geometry.WindingTree`), slivers (a dihedral angle under 5
+   degrees) left out, every skeleton point kept in some tetrahedron, and parts that
+   hold no skeleton point dropped.
 
 The surface's own vertices are *not* vertices of the volume mesh: its cost is set by
 ``size`` (by default chosen for about :data:`DEFAULT_VERTICES` vertices), not by the
 surface's resolution, and weights reach the surface by interpolation
 (:meth:`VolumeMesh.interpolation`). The skeleton's points are vertices, so the
 weights' boundary conditions are exact where the skeleton is inside the shape.
+docs/bbw.md ("Real surfaces") says why each step is as it is, with measurements.
 """
 
 from __future__ import annotations
@@ -85,7 +89,6 @@ class VolumeMesh:
     size: float
     kind: np.ndarray
     bones_outside: dict = field(default_factory=dict)
-    _locate: object = field(default=None, repr=False)
 
     def __repr__(self) -> str:
         return (f"VolumeMesh({self.V.shape[0]} vertices, {self.T.shape[0]} tetrahedra, "
@@ -105,7 +108,7 @@ class VolumeMesh:
         (p, m) sparse array, 4 entries per row.
         """
         P = _checks.real_array("P", P, ndim=2, shape=(None, 3))
-        return _interpolation(self.V, self.T, P, self._locate)
+        return _interpolation(self.V, self.T, P)
 
     def bone_points(self, sk: Skeleton) -> np.ndarray:
         """(b,) int: how many of the mesh's vertices lie on each bone (joints included)."""
@@ -189,8 +192,9 @@ def volume_mesh(V, F, sk: Skeleton, *, size: float | None = None,
     Raises
     ------
     ValueError
-        Bad arrays; a surface that encloses nothing (no winding number above 1/2
-        anywhere); a skeleton with no point inside the shape.
+        Bad arrays or options; a skeleton with no point inside the shape (winding
+        number above 1/2), e.g. a surface that encloses nothing or a skeleton in other
+        coordinates.
     """
     _checks.skeleton(sk)
     if sk.dim != 3:
@@ -258,9 +262,8 @@ def volume_mesh(V, F, sk: Skeleton, *, size: float | None = None,
     ns, nk = S.shape[0], K.shape[0]
     X = np.vstack([K, S, L])
 
-    # 4. Delaunay, and the tetrahedra inside
-    tri = Delaunay(X)
-    T = tri.simplices.astype(np.int64)
+    # 5. Delaunay, and the tetrahedra inside
+    T = Delaunay(X).simplices.astype(np.int64)
     w = wind(X[T].mean(axis=1))
     keep = (w > INSIDE) & ~_flat(X, T)
     # Slivers (nearly flat tetrahedra, common in Delaunay meshes of surface samples)
@@ -285,7 +288,7 @@ def volume_mesh(V, F, sk: Skeleton, *, size: float | None = None,
         firsts = np.unique(cv[order], return_index=True)[1]
         keep[ct[order][firsts]] = True
     kept = np.flatnonzero(keep)
-    # 5. parts without a skeleton point are left out (their surface interpolates from
+    # 6. parts without a skeleton point are left out (their surface interpolates from
     # the nearest part that has one)
     kept = kept[_with_skeleton(T[kept], X.shape[0], nk)]
     Tk = T[kept]
@@ -308,16 +311,12 @@ def volume_mesh(V, F, sk: Skeleton, *, size: float | None = None,
     joint_vertex = np.full(sk.n_joints, -1, dtype=np.int64)
     sel = in_mesh & ~inner
     joint_vertex[kidx[sel]] = remap[np.flatnonzero(sel)]
-    # the locator: Delaunay's point location, on the kept tetrahedra
-    full_to_kept = np.full(T.shape[0], -1, dtype=np.int64)
-    full_to_kept[kept] = np.arange(kept.size)
-    locate = _Locator(tri, full_to_kept, remap)
     kind = np.repeat(np.array([0, 1, 2], dtype=np.int8), [nk, ns, X.shape[0] - nk - ns])[used]
     for a in (Xm, Tm, on_bone, t_bone, joint_vertex, kind):
         a.setflags(write=False)
     return VolumeMesh(V=Xm, T=Tm, on_bone=on_bone, t_bone=t_bone,
                       joint_vertex=joint_vertex, size=float(h), kind=kind,
-                      bones_outside=outside, _locate=locate)
+                      bones_outside=outside)
 
 
 # --------------------------------------------------------------------------------------
@@ -595,64 +594,49 @@ def _stacklevel() -> int:
     return level
 
 
-@dataclass
-class _Locator:
-    """Point location in the kept tetrahedra through the full Delaunay triangulation."""
-
-    tri: Delaunay
-    full_to_kept: np.ndarray
-    remap: np.ndarray
-
-
-def _interpolation(Vm, Tm, P, locate: _Locator | None) -> sp.csr_array:
+def _interpolation(Vm, Tm, P, chunk: int = 20_000) -> sp.csr_array:
+    """(p, m): each point's barycentric coordinates in the tetrahedron holding it, or
+    the clamped ones of the nearest point of the nearest tetrahedron (see
+    :func:`_nearest_tets`), four per row, >= 0 and summing to 1."""
     p, m = P.shape[0], Vm.shape[0]
-    tet = np.full(p, -1, dtype=np.int64)
+    cen = Vm[Tm].mean(axis=1)
+    tree = cKDTree(cen)
+    # columns: the edges from the fourth corner, so b = Ainv (x - v3)
+    Ainv = np.linalg.inv(np.swapaxes(Vm[Tm[:, :3]] - Vm[Tm[:, 3]][:, None, :], 1, 2))
+    tet = np.zeros(p, dtype=np.int64)
     bary = np.zeros((p, 4))
-    if locate is not None:
-        s = locate.tri.find_simplex(P)
-        ok = s >= 0
-        ok[ok] = locate.full_to_kept[s[ok]] >= 0
-        if ok.any():
-            Tr = locate.tri.transform[s[ok]]
-            b3 = np.einsum("pij,pj->pi", Tr[:, :3], P[ok] - Tr[:, 3])
-            bary[ok] = np.c_[b3, 1.0 - b3.sum(axis=1)]
-            tet[ok] = locate.full_to_kept[s[ok]]
-            # The full triangulation's vertex order: map to the kept tetrahedron's.
-            full = locate.remap[locate.tri.simplices[s[ok]]]
-            kept = Tm[tet[ok]]
-            perm = np.argmax(full[:, :, None] == kept[:, None, :], axis=1)
-            reordered = np.zeros_like(bary[ok])
-            np.put_along_axis(reordered, perm, bary[ok], axis=1)
-            bary[ok] = reordered
-    rest = np.flatnonzero(tet < 0)
-    if rest.size:
-        tet[rest], bary[rest] = _nearest_tets(Vm, Tm, P[rest])
-    bary = np.clip(bary, 0.0, None)
-    bary /= bary.sum(axis=1, keepdims=True)
+    tol = 1e-12 * scale_of(Vm)
+    for s in range(0, p, chunk):
+        Q = P[s:s + chunk]
+        t, b, d = _nearest_tets(Vm, Tm, Q, tree, Ainv, k=16)
+        # not inside one of the 16 nearest: look wider (long thin tetrahedra)
+        wide = np.flatnonzero(d > tol)
+        if wide.size:
+            t2, b2, d2 = _nearest_tets(Vm, Tm, Q[wide], tree, Ainv, k=64)
+            better = d2 < d[wide]
+            t[wide[better]], b[wide[better]] = t2[better], b2[better]
+        tet[s:s + chunk], bary[s:s + chunk] = t, b
     rows = np.repeat(np.arange(p), 4)
     return sp.csr_array((bary.ravel(), (rows, Tm[tet].ravel())), shape=(p, m))
 
 
-def _nearest_tets(Vm, Tm, P, k: int = 12):
-    """For points outside the mesh: the tetrahedron (among the ``k`` with the nearest
-    centroids) whose clamped barycentric point is nearest, and those coordinates."""
-    cen = Vm[Tm].mean(axis=1)
+def _nearest_tets(Vm, Tm, P, tree, Ainv, k: int):
+    """Among the ``k`` tetrahedra with the nearest centroids: the one whose nearest
+    point to each of ``P`` (approximated by clamping the barycentric coordinates) is
+    nearest. Returns (tetrahedra, coordinates, distances); a point inside one of
+    them gets it, with its exact coordinates and distance 0."""
     k = min(k, Tm.shape[0])
-    _, cand = cKDTree(cen).query(P, k=k)
+    _, cand = tree.query(P, k=k)
     cand = cand.reshape(P.shape[0], k)
-    A = Vm[Tm[:, :3]] - Vm[Tm[:, 3]][:, None, :]          # (t, 3, 3): rows are edges
-    Ainv = np.linalg.pinv(np.swapaxes(A, 1, 2))            # columns are edges
     best_d = np.full(P.shape[0], np.inf)
     best_t = np.zeros(P.shape[0], dtype=np.int64)
     best_b = np.zeros((P.shape[0], 4))
     for c in range(k):
         t = cand[:, c]
         b3 = np.einsum("pij,pj->pi", Ainv[t], P - Vm[Tm[t, 3]])
-        b = np.c_[b3, 1.0 - b3.sum(axis=1)]
-        b = np.clip(b, 0.0, None)
+        b = np.clip(np.c_[b3, 1.0 - b3.sum(axis=1)], 0.0, None)
         b /= b.sum(axis=1, keepdims=True)
-        Q = np.einsum("pc,pcd->pd", b, Vm[Tm[t]])
-        d = np.linalg.norm(Q - P, axis=1)
+        d = np.linalg.norm(np.einsum("pc,pcd->pd", b, Vm[Tm[t]]) - P, axis=1)
         better = d < best_d
         best_d[better], best_t[better], best_b[better] = d[better], t[better], b[better]
-    return best_t, best_b
+    return best_t, best_b, best_d
