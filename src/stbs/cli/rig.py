@@ -20,7 +20,7 @@ Turn a bare mesh and skeleton into a complete STBS rig (paper §2.3, §3):
      vertices, and the weights are interpolated to the surface's vertices (--tets
      winding); --tets conforming tetrahedralizes a closed, clean surface through its
      own vertices instead; --tets auto (default) takes conforming for such a surface
-     of up to 5,000 vertices that holds the skeleton, else winding; --tets FILE reads
+     of up to 10,000 vertices that holds the skeleton, else winding; --tets FILE reads
      a tetrahedral mesh (surface vertices first, as in libigl's .mesh files). Bone
      heat (--bone heat) works on the 3D surface, or a tetrahedral mesh's boundary.
      With the winding volume the parts of the skeleton outside the shape are left
@@ -72,7 +72,7 @@ def add_tets_arguments(p: argparse.ArgumentParser) -> None:
                         "surface's inside by winding number, weights interpolated to the "
                         "surface (winding: any surface); tetrahedra through a closed, clean "
                         "surface's own vertices (conforming); auto: conforming for such a "
-                        "surface of up to 5,000 vertices holding the skeleton, else (or with "
+                        "surface of up to 10,000 vertices holding the skeleton, else (or with "
                         "--tet-size) winding; or read tets from FILE")
     p.add_argument("--tet-size", type=float, default=None, metavar="H",
                    help="--tets auto/winding: the winding-number volume mesh's edge length, "
