@@ -94,16 +94,31 @@ def test_parts_self_intersections_and_a_non_manifold_edge():
     # bone 1 crosses the gap between A and B; bone 5 is nowhere near the shape
     assert len(said) == 1
     assert "bone 1 ('bone1', joints 1->2)" in said[0] and "bone 4 ('bone4'" in said[0]
-    assert "the 1 wholly outside hold the volume's vertices nearest them" in said[0]
+    assert "the 1 farther than 2 times the spacing (0.1) get no bone weight (bone 4" \
+        in said[0]
     assert vm.bones_outside[4][0] == 1.0 and 0 < vm.bones_outside[1][0] < 1
+    assert vm.bones_outside[4][2] > 3.0                    # its nearest point's distance
     # the overlapping box and the one touching along an edge are meshed too
     for p in ([0.6, 0.5, -0.3], [2.5, 0.5, 0.5], [1.5, 1.5, 0.5]):
         assert np.linalg.norm(vm.V - p, axis=1).min() < 0.1
     b, bc, stand_in = vm.boundary_conditions(sk)
     np.testing.assert_allclose(bc.sum(axis=1), 1.0)
-    assert set(stand_in) == {4} and stand_in[4] > 3.0      # held by the nearest vertices
-    held = b[bc[:, 4] > 0]
-    assert held.size >= 1 and (vm.on_bone[held] < 0).all()
+    assert stand_in == {} and not bc[:, 4].any()           # too far to hold anything
+
+
+def test_a_bone_wholly_outside_but_near_holds_the_nearest_vertices():
+    V, F = box([0, 0, 0], [2, 1, 1], 8)
+    # a "toe" just under the floor, as a Mixamo toe bone lies on the sole
+    sk = stbs.Skeleton([[0.2, 0.5, 0.5], [1.0, 0.5, 0.5], [1.2, 0.5, -0.03], [1.8, 0.5, -0.03]],
+                       [[0, 1], [2, 3]], names=["leg", "toe"])
+    vm, said = _mesh(V, F, sk, size=0.1)
+    assert "bone 1 ('toe', joints 2->3): 100 % outside" in said[0]
+    assert "the 1 wholly outside but near it hold the volume's vertices nearest them" in said[0]
+    b, bc, stand_in = vm.boundary_conditions(sk)
+    assert set(stand_in) == {1} and stand_in[1] < 0.1
+    held = b[bc[:, 1] > 0]
+    assert held.size >= 2 and (vm.on_bone[held] < 0).all()
+    assert np.all(vm.V[held, 2] < 0.15) and np.all(vm.V[held, 0] > 1.0)
 
 
 def test_a_skeleton_wholly_outside_is_an_error():

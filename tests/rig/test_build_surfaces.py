@@ -63,24 +63,32 @@ def test_an_open_tube_with_a_bone_poking_out(bone):
     _e_runs_from_0_to_1(V, TUBE_SK, W, E, 1, end=0.6)
 
 
-def test_two_parts_a_bone_across_the_gap_and_one_wholly_outside():
+def test_two_parts_a_bone_across_the_gap_and_bones_wholly_outside():
     V, F = join(box([0, 0, 0], [1, 1, 1], 10), box([2, 0, 0], [3, 1, 1], 10))
+    # "toe" lies just under box b's floor (as a Mixamo toe bone lies on the sole);
+    # "antenna" floats far above box a (as an IK pole target)
     sk = stbs.Skeleton([[0.1, 0.5, 0.5], [0.9, 0.5, 0.5], [2.1, 0.5, 0.5], [2.9, 0.5, 0.5],
-                        [0.5, 0.5, 3.0], [0.5, 0.5, 4.0]],
-                       [[0, 1], [1, 2], [2, 3], [4, 5]], names=["a", "gap", "b", "antenna"])
+                        [0.5, 0.5, 3.0], [0.5, 0.5, 4.0], [2.2, 0.5, -0.02], [2.6, 0.5, -0.02]],
+                       [[0, 1], [1, 2], [2, 3], [4, 5], [6, 7]],
+                       names=["a", "gap", "b", "antenna", "toe"])
     rig, said = _rig(V, sk, F=F, volume_size=0.1)
-    W, E = _valid(rig, V.shape[0], 4)
+    W, E = _valid(rig, V.shape[0], 5)
     assert len(said) == 1
-    assert "bone 1 ('gap', joints 1->2)" in said[0] and "bone 3 ('antenna', joints 4->5)" \
-        in said[0] and "1 wholly outside" in said[0]
+    for name in ("bone 1 ('gap', joints 1->2)", "bone 3 ('antenna', joints 4->5)",
+                 "bone 4 ('toe', joints 6->7)", "the 1 wholly outside but near it hold",
+                 "get no bone weight (bone 3 ('antenna'"):
+        assert name in said[0]
     a, b = V[:, 0] < 1.5, V[:, 0] > 1.5
     assert W[a, 0].mean() > 0.5 and W[b, 2].mean() > 0.5
     _e_runs_from_0_to_1(V, sk, W, E, 0)
     _e_runs_from_0_to_1(V, sk, W, E, 2)
-    # the antenna holds the top of box a (its nearest), with the projection as e
-    top = V[:, 2] > 0.99
-    assert W[top & a, 3].max() > 0.2
-    np.testing.assert_allclose(E[:, 3], stbs.endpoint_weights(V, sk)[:, 3], atol=1e-12)
+    # the toe holds the floor of box b it lies under; the antenna holds nothing
+    floor = b & (V[:, 2] < 0.01) & (V[:, 0] < 2.6)
+    assert W[floor, 4].mean() > 0.3 and W[:, 4].max() > 0.9
+    assert W[:, 3].max() == 0
+    # wholly outside, both keep the projection as endpoint weights
+    P = stbs.endpoint_weights(V, sk)
+    np.testing.assert_allclose(E[:, 3:], P[:, 3:], atol=1e-12)
 
 
 def test_self_intersecting_boxes_and_a_non_manifold_edge():

@@ -49,6 +49,10 @@ DEFAULT_VERTICES = 12_000
 MAX_REFINE = 2
 #: Winding number above which a point is inside.
 INSIDE = 0.5
+#: A bone wholly outside the shape but within this many times the spacing of it holds
+#: the volume vertices nearest it (a toe bone on the sole); farther (an IK pole target)
+#: it gets no bone weight.
+REACH = 2.0
 #: Tetrahedra with a dihedral angle below this (degrees) are slivers, left out.
 SLIVER_DEGREES = 5.0
 #: Bones named in one warning; the rest are counted.
@@ -77,8 +81,9 @@ class VolumeMesh:
     kind : (m,) int8
         Where each vertex comes from: 0 the skeleton, 1 the surface, 2 the lattice.
     bones_outside : dict
-        ``{bone: (share, distance)}`` for the bones with points outside the shape:
-        the share of their points left out, and how far outside the farthest is.
+        ``{bone: (share, farthest, nearest)}`` for the bones with points outside the
+        shape: the share of their points left out, and how far outside the farthest
+        and the nearest of those are.
     """
 
     V: np.ndarray
@@ -121,8 +126,10 @@ class VolumeMesh:
 
         The skeleton's vertices hold their bones (``1/k`` each at a joint of k bones,
         as :func:`stbs.weights.boundary_conditions`). A bone with no point inside the
-        shape is held at the free vertices nearest to points along it; the third
-        value maps such bones to the largest distance, in the shape's units.
+        shape is held at the free vertices nearest to points along it when it lies
+        within :data:`REACH` times the spacing of the surface; farther, it is held
+        nowhere (its weights are 0). The third value maps the bones held so to the
+        distance of their nearest vertex, in the shape's units.
 
         Raises
         ------
@@ -149,6 +156,8 @@ class VolumeMesh:
                                  "and the volume mesh has no free vertex to hold it")
             tree = cKDTree(self.V[free])
             for i in empty.tolist():
+                if self.bones_outside.get(i, (1.0, 0.0, 0.0))[2] > REACH * self.size:
+                    continue            # far outside (an IK target): no weight
                 k = max(2, min(16, int(np.ceil(sk.lengths[i] / self.size)) + 1))
                 S = sk.A[i] + np.linspace(0.0, 1.0, k)[:, None] * (sk.B[i] - sk.A[i])
                 d, j = tree.query(S)
@@ -238,7 +247,7 @@ def volume_mesh(V, F, sk: Skeleton, *, size: float | None = None,
     dup = np.ones(skp.X.shape[0], dtype=bool)
     dup[once] = False
     keep_sk = inside_sk & ~dup
-    outside = _outside_report(sk, skp, inside_sk, V, F)
+    outside = _outside_report(sk, skp, inside_sk, V, F, h)
     if not keep_sk.any():
         raise ValueError("sk: no joint or bone of the skeleton lies inside the shape (winding "
                          "number > 1/2); check that the skeleton and the mesh use the same "
@@ -553,15 +562,16 @@ def _with_skeleton(T, n, nk) -> np.ndarray:
     return good[comp[T[:, 0]]]
 
 
-def _outside_report(sk: Skeleton, skp, inside: np.ndarray, V, F) -> dict:
+def _outside_report(sk: Skeleton, skp, inside: np.ndarray, V, F, h) -> dict:
     """Warn about the bones with points outside the shape; return them as
-    ``{bone: (share of its points outside, farthest distance)}``."""
+    ``{bone: (share of its points outside, farthest distance, nearest distance)}``
+    (distances of the points outside from the surface)."""
     if inside.all():
         return {}
     from ._kernels import SurfaceIndex
 
     j = sk.n_joints
-    out: dict[int, tuple[float, float]] = {}
+    out: dict[int, tuple[float, float, float]] = {}
     dist = np.zeros(skp.X.shape[0])
     bad = np.flatnonzero(~inside)
     dist[bad] = SurfaceIndex(V, F).closest_side(skp.X[bad], np.inf)[0]
@@ -569,17 +579,23 @@ def _outside_report(sk: Skeleton, skp, inside: np.ndarray, V, F) -> dict:
         pts = np.concatenate([sk.BE[i], j + np.flatnonzero(skp.bone[j:] == i)])
         lost = ~inside[pts]
         if lost.any():
-            out[i] = (float(lost.mean()), float(dist[pts][lost].max()))
-    wholly = [i for i, (s, _) in out.items() if s == 1.0]
+            d = dist[pts][lost]
+            out[i] = (float(lost.mean()), float(d.max()), float(d.min()))
+    near = [i for i, (s, _, d) in out.items() if s == 1.0 and d <= REACH * h]
+    far = [i for i, (s, _, d) in out.items() if s == 1.0 and d > REACH * h]
     parts = [f"{bone_label(sk, i)}: {100 * s:.0f} % outside, up to {d:.3g}"
-             for i, (s, d) in list(out.items())[:_NAMED]]
+             for i, (s, d, _) in list(out.items())[:_NAMED]]
     more = f"; and {len(out) - _NAMED} more" if len(out) > _NAMED else ""
     warnings.warn(f"volume mesh: {len(out)} bone(s) leave the shape ({'; '.join(parts)}{more};"
                   f" distances in the mesh's units, shape size {scale_of(V):.3g}); the "
                   "weights are held by their parts inside"
-                  + (f"; the {len(wholly)} wholly outside hold the volume's vertices nearest "
-                     "them and keep the projection (eq. 8) as endpoint weights"
-                     if wholly else ""), UserWarning, stacklevel=_stacklevel())
+                  + (f"; the {len(near)} wholly outside but near it hold the volume's vertices "
+                     "nearest them" if near else "")
+                  + (f"; the {len(far)} farther than {REACH:g} times the spacing ({h:.3g}) get "
+                     "no bone weight (" + ", ".join(bone_label(sk, i) for i in far[:_NAMED])
+                     + (", ..." if len(far) > _NAMED else "") + ")" if far else "")
+                  + ("; wholly outside, they keep the projection (eq. 8) as endpoint weights"
+                     if near or far else ""), UserWarning, stacklevel=_stacklevel())
     return out
 
 
