@@ -204,6 +204,18 @@ def volume_mesh(V, F, sk: Skeleton, *, size: float | None = None,
         Bad arrays or options; a skeleton with no point inside the shape (winding
         number above 1/2), e.g. a surface that encloses nothing or a skeleton in other
         coordinates.
+
+    Examples
+    --------
+    >>> import stbs
+    >>> from stbs.meshing import volume_mesh
+    >>> V, F, sk, _ = stbs.shapes.cigar(12)
+    >>> vm = volume_mesh(V, F, sk, vertices=2000)
+    >>> 1500 < vm.V.shape[0] < 2500, bool((vm.V[vm.joint_vertex] == sk.C).all())
+    (True, True)
+    >>> P = vm.interpolation(V)          # the surface's vertices from the volume's
+    >>> bool(abs(P.sum(axis=1) - 1).max() < 1e-12 and abs(P @ vm.V - V).max() < vm.size)
+    True
     """
     _checks.skeleton(sk)
     if sk.dim != 3:
