@@ -135,7 +135,10 @@ def test_tetgen_failure_is_reported_and_contained(tmp_path, monkeypatch):
     V2, F2 = box((0.5, 0.5, 0.5), (1.5, 1.5, 1.5))
     V, F = np.vstack([V1, V2]), np.vstack([F1, F2 + 8])
     sk = stbs.Skeleton([[0.1, 0.1, 0.1], [0.4, 0.2, 0.2]], [[0, 1]])
-    with pytest.raises(RuntimeError, match="TetGen failed.*self-intersections"):
+    # TetGen either reports the self-intersections or its process dies (glibc aborts
+    # it on the heap it corrupted); both must come back as one RuntimeError
+    with pytest.raises(RuntimeError, match="TetGen failed with switches '[^']+': "
+                                           "(.*self-intersections|.*pointer|killed by signal)"):
         tetrahedralize(V, F, sk, engine="tetgen", self_intersections=False)
     with pytest.warns(UserWarning, match="TetGen failed.*using the builtin"):
         m = tetrahedralize(V, F, sk, self_intersections=False)
