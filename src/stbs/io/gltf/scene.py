@@ -12,6 +12,7 @@ from __future__ import annotations
 import numpy as np
 
 from ... import transforms as tf
+from ...rig.joints import rigid_parts as polar
 from .accessors import read_accessor
 from .container import GltfFile
 
@@ -26,17 +27,6 @@ def trs_matrices(t: np.ndarray, q: np.ndarray, s: np.ndarray) -> np.ndarray:
     M[..., :3, 3] = t
     M[..., 3, 3] = 1.0
     return M
-
-
-def polar(A: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The closest rotations to (..., 3, 3) matrices, and how far each was from one
-    (max ``|s - 1|`` over its singular values)."""
-    U, S, Vt = np.linalg.svd(A)
-    det = np.sign(np.linalg.det(U @ Vt))
-    det = np.where(det == 0, 1.0, det)
-    U = U.copy()
-    U[..., :, 2] *= det[..., None]
-    return U @ Vt, np.abs(S - 1).max(axis=-1)
 
 
 class Scene:
