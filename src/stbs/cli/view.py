@@ -86,8 +86,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     g.add_argument("--bone", choices=BONE, default=None, help="bone weights (default: bbw)")
     g.add_argument("--endpoint", choices=ENDPOINT, default=None,
                    help="endpoint weights (default: bbw)")
-    g.add_argument("--tets", default=None, metavar="auto|FILE",
-                   help="3D bbw: tetrahedralize the surface (auto) or read tets from FILE")
+    g.add_argument("--tets", default=None, metavar="auto|winding|conforming|FILE",
+                   help="3D bbw: the volume the weights are solved on, as for 'stbs rig' "
+                        "(default: auto), or tets read from FILE")
     add_clip_argument(g)
     add_tol_argument(g)
 
