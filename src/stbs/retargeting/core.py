@@ -329,7 +329,7 @@ def retarget(motion: Motion, rig, *, mapping=None,
         ``{rig bone (name or index): motion joint name (or None: follow the parent)}``,
         or a JSON file holding one; it gives every bone's joint (bones it leaves out
         follow their parents). Default: by body part, read from the names of both
-        (CMU, Mixamo, LAFAN, Bandai Namco, Blender, Unreal, games105 ... conventions)
+        (CMU, Mixamo, LAFAN, Bandai Namco, Blender, Unreal, ``RootJoint``/``lHip`` ... conventions)
         or, for unnamed joints, from the skeleton's shape (:func:`joint_map` shows
         the result).
     twist : {"spread", "joint"}

@@ -2,15 +2,15 @@
 
 Capture files and rigs name the same joint in many ways: ``LeftForeArm`` (CMU,
 Mixamo ``mixamorig:LeftForeArm``, LAFAN), ``LowerArm_L`` (Bandai Namco),
-``lElbow`` (games105), ``forearm.L`` (Blender, Rigify ``DEF-forearm.L``),
+``lElbow`` (short side-prefixed names), ``forearm.L`` (Blender, Rigify ``DEF-forearm.L``),
 ``lowerarm_l`` (Unreal), ``Bip01 L Forearm`` (3ds Max Biped), ``ElbowLeft`` (Kinect).
 :func:`parse_name` reads any of them as a side and the words of the name;
 :func:`candidates` lists the *roles* (:data:`ROLES`) a name may stand for, with a
 score. Several names are ambiguous on their own and are settled by the joint's place
 in its chain (:mod:`stbs.retargeting.body`): ``shoulder`` is the collar bone in CMU,
 Mixamo and Bandai Namco files but the upper arm when a ``clavicle``/``collar`` joint
-comes before it (games105, Kinect, the older CMU conversions); ``leg`` is the shin
-after an ``upleg`` (CMU, Mixamo) and the thigh of a chain ``Leg01, Leg02``; a sided
+comes before it (short side-prefixed names such as ``lShoulder``, Kinect, the older
+CMU conversions); ``leg`` is the shin after an ``upleg`` (CMU, Mixamo) and the thigh of a chain ``Leg01, Leg02``; a sided
 ``hip`` is the thigh (``lHip``) or the pelvis's side piece before it (``LHipJoint``).
 """
 
