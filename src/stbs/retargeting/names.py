@@ -10,8 +10,9 @@ score. Several names are ambiguous on their own and are settled by the joint's p
 in its chain (:mod:`stbs.retargeting.body`): ``shoulder`` is the collar bone in CMU,
 Mixamo and Bandai Namco files but the upper arm when a ``clavicle``/``collar`` joint
 comes before it (short side-prefixed names such as ``lShoulder``, Kinect, the older
-CMU conversions); ``leg`` is the shin after an ``upleg`` (CMU, Mixamo) and the thigh of a chain ``Leg01, Leg02``; a sided
-``hip`` is the thigh (``lHip``) or the pelvis's side piece before it (``LHipJoint``).
+CMU conversions); ``leg`` is the shin after an ``upleg`` (CMU, Mixamo) and the thigh
+of a chain ``Leg01, Leg02``; a sided ``hip`` is the thigh (``lHip``) or the pelvis's
+side piece before it (``LHipJoint``).
 """
 
 from __future__ import annotations
