@@ -199,3 +199,29 @@ def test_a_capture_on_no_body_is_a_clear_error(characters, captures, character):
     with pytest.raises(ValueError, match=r"^no joint of '.*fairmotion_cmu_01_01\.bvh' maps "
                                          r"to a bone of the rig; the rig's bones are Bone, "):
         retarget(captures["fairmotion_cmu_01_01"], rig)
+
+
+def _body_axis(U, lo, hi):
+    d = U[hi].mean(axis=0) - U[lo].mean(axis=0)
+    return d / np.linalg.norm(d)
+
+
+@pytest.mark.parametrize("character", ["CesiumMan", "RiggedFigure", "threejs_Xbot"])
+def test_a_walk_keeps_the_body_upright_as_it_stands_at_rest(characters, captures, character):
+    # a walk leans the body a little, never lays it down: the axis from the lowest to the
+    # highest vertices of the rest mesh stays within 35 degrees of where it is at rest
+    # (a rigid tilt of the whole body tears no edge, so the tear test cannot see it)
+    rig = characters(character)[0]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")     # bones no joint drives (fingers, eyes)
+        clip = retarget(captures["games105_walk60"], rig)
+    order = np.argsort(rig.V[:, 1])
+    k = max(len(order) // 50, 3)
+    lo, hi = order[:k], order[-k:]
+    rest = _body_axis(rig.V, lo, hi)
+    for t in np.linspace(clip.start, clip.end, 12):
+        U = stbs.deform(rig.V, rig.skeleton, clip.pose(float(t)), rig.W, method="lbs")
+        cos = float(_body_axis(U, lo, hi) @ rest)
+        assert cos > np.cos(np.radians(35)), (character, float(t), np.degrees(np.arccos(cos)))
+    # and the rest mesh stands up the file's way (glTF is y-up)
+    assert rest[1] > 0.9

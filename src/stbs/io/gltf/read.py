@@ -420,8 +420,14 @@ def _read(f: GltfFile, skin, mesh, rigid: bool = True) -> tuple[Rig, Scene, Join
     M0 = scene.world()[nodes] @ IBM
     sv = np.linalg.svd(M0[:, :3, :3], compute_uv=False)
     c = float(np.exp(np.log(sv).mean()))
-    if abs(c - 1) > 1e-4 and np.abs(sv / c - 1).max() <= 1e-4:
-        Y = M0[int(np.flatnonzero(parent < 0)[0])]
+    # The same holds when every joint's skin matrix at rest is one and the same rigid
+    # motion (a bind made in Z-up space under a node turning it Y-up): the rig is put
+    # where the file draws its rest pose, so a rest pose is upright as the file shows it.
+    Y = M0[int(np.flatnonzero(parent < 0)[0])]
+    rel = np.abs(M0 - Y).max() / max(float(np.abs(Y[:3, 3]).max()), 1.0)
+    same = rel <= 1e-5 and np.abs(sv / c - 1).max() <= 1e-4
+    if (abs(c - 1) > 1e-4 and np.abs(sv / c - 1).max() <= 1e-4) or (
+            same and np.abs(Y - np.eye(4)).max() > 1e-6):
         V = V @ Y[:3, :3].T + Y[:3, 3]
         IBM = IBM @ np.linalg.inv(Y)
         bind = Y @ bind
