@@ -20,12 +20,14 @@ while a command succeeds are printed as ``stbs: warning: <message>``, one line e
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 import warnings
 from collections.abc import Sequence
 from typing import NoReturn
 
 from .._optional import OptionalDependencyError, missing
+from ..io._inputs import check_output, note_input, tracking
 from . import animate as _animate
 from . import bench as _bench
 from . import deform as _deform
@@ -146,7 +148,9 @@ def main(argv: Sequence[str] | None = None) -> int:
                 advice = missing(need(args), "this command") if need else None
                 if advice:
                     raise OptionalDependencyError(advice)
-                code = args._cmd.run(args)
+                with tracking():
+                    _refuse_output_over_input(args)
+                    code = args._cmd.run(args)
         except SystemExit as exc:  # a delegated parser's --help or usage error
             return _code(exc)
         except KeyboardInterrupt:
@@ -162,6 +166,29 @@ def main(argv: Sequence[str] | None = None) -> int:
             return 2
     _flush(caught)
     return int(code or 0)
+
+
+#: Arguments that name what a command writes; every other argument naming an existing
+#: file is something it reads.
+_OUTPUT_ARGS = ("output", "out", "save_as")
+
+
+def _refuse_output_over_input(args: argparse.Namespace) -> None:
+    """Note the files named on the command line as inputs and refuse, before any work,
+    an output that is one of them (the writers check again, for files that inputs
+    name in turn, such as a glTF's buffers)."""
+    outs = []
+    for key, value in vars(args).items():
+        values = value if isinstance(value, list) else [value]
+        for v in values:
+            if not isinstance(v, str) or not v or key.startswith("_"):
+                continue
+            if key in _OUTPUT_ARGS:
+                outs.append((key, v))
+            elif os.path.isfile(v):
+                note_input(v)
+    for key, v in outs:
+        check_output(v, "--" + key.replace("_", "-"))
 
 
 def _flush(caught) -> None:

@@ -15,11 +15,14 @@ from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import IO, Any
 
+from ._inputs import check_output
+
 __all__ = ["atomic_open", "atomic_save", "atomic_write"]
 
 
 def _destination(path: str | os.PathLike) -> Path:
     p = Path(os.fspath(path))
+    check_output(p)
     if p.is_dir():
         raise IsADirectoryError(f"cannot write {str(p)!r}: it is a folder, expected a file path")
     folder = p.parent if str(p.parent) else Path(".")

@@ -1,0 +1,89 @@
+"""The files a run has read, so that no output of that run is written over one of them.
+
+A command (and the viewer, for its whole life) runs inside :func:`tracking`. Every
+reader notes the files it opens with :func:`note_input` (``input_path`` does it for the
+readers that go through it), and every writer asks :func:`check_output` before it
+writes (the atomic writers of :mod:`stbs.io._atomic` do). An output is refused when it
+is the same file as an input, compared by resolved path (symbolic links followed) and
+by device and inode (hard links). Outside :func:`tracking` nothing is recorded or
+refused: a script may read a rig, change it and save it in place.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import threading
+from collections.abc import Iterator
+from pathlib import Path
+
+__all__ = ["tracking", "note_input", "check_output", "check_outputs", "SameFileError",
+           "inputs"]
+
+_lock = threading.Lock()
+#: The runs being tracked (a stack: a command may run inside another's tracking).
+_runs: list[dict[str, tuple[int, int] | None]] = []
+
+
+class SameFileError(ValueError):
+    """An output path names a file the same run reads."""
+
+
+@contextlib.contextmanager
+def tracking() -> Iterator[None]:
+    """Record the inputs read inside the block and refuse outputs written over them."""
+    run: dict[str, tuple[int, int] | None] = {}
+    with _lock:
+        _runs.append(run)
+    try:
+        yield
+    finally:
+        with _lock:
+            _runs.remove(run)
+
+
+def _key(path: str | os.PathLike) -> tuple[str, tuple[int, int] | None]:
+    real = os.path.realpath(os.fspath(path))
+    try:
+        st = os.stat(real)
+        ident = (st.st_dev, st.st_ino)
+    except OSError:
+        ident = None
+    return real, ident
+
+
+def note_input(path: str | os.PathLike) -> None:
+    """Record ``path`` as read by the current run (nothing when none is tracked)."""
+    if not _runs:
+        return
+    real, ident = _key(path)
+    with _lock:
+        for run in _runs:
+            run[real] = ident
+
+
+def inputs() -> list[str]:
+    """The resolved paths of the files the current run has read."""
+    with _lock:
+        return sorted({p for run in _runs for p in run})
+
+
+def check_output(path: str | os.PathLike, what: str = "output") -> None:
+    """Raise :class:`SameFileError` when ``path`` is a file the current run read."""
+    if not _runs:
+        return
+    real, ident = _key(path)
+    with _lock:
+        seen = {p: i for run in _runs for p, i in run.items()}
+    for p, i in seen.items():
+        if p == real or (ident is not None and i == ident):
+            same = "" if p == real else f" (the same file as {p!r})"
+            raise SameFileError(
+                f"{what} {os.fspath(path)!r}: refusing to write over a file this command "
+                f"reads{same}; choose another output path")
+
+
+def check_outputs(paths: list[str | os.PathLike | Path], what: str = "output") -> None:
+    """:func:`check_output` for each path."""
+    for p in paths:
+        check_output(p, what)
