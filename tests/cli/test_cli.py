@@ -255,7 +255,7 @@ def _bad_cases(d: Path, case):
         "output extension": ([rig, "--pose", pose, "-o", d / "out.stl"],
                              "cannot write extension '.stl'"),
         "output is an input": ([*files, "--weights", d / "W.dmat", "--pose", pose_i,
-                                "-o", d / "bar.obj"], "is the input"),
+                                "-o", d / "bar.obj"], "refusing to write over a file"),
     }
 
 

@@ -124,13 +124,22 @@ def test_rig_errors_exit_2_one_line(shared_data, tmp_path, capsys, monkeypatch, 
     assert not (tmp_path / "x.npz").exists()
 
 
-def test_weights_recomputes_endpoint_weights_in_place(shared_data, tmp_path):
+def test_weights_recomputes_endpoint_weights(shared_data, tmp_path, capsys):
     d = shared_data / "fast_support_reduction"
     rig_path = tmp_path / "cant.npz"
     assert main(["rig", str(d / "cantilever_S.obj"), str(d / "cantilever_S.tgf"),
                  "-o", str(rig_path), "--endpoint", "projection"]) == 0
     before = stbs.load_rig(rig_path)
-    assert main(["weights", str(rig_path), "--endpoint", "idw", "-o", str(rig_path)]) == 0
+    data = rig_path.read_bytes()
+    capsys.readouterr()
+    # never over its own input, even when asked
+    assert main(["weights", str(rig_path), "--endpoint", "idw", "-o", str(rig_path)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "refusing to write over a file this command reads" in err[0]
+    assert rig_path.read_bytes() == data
+    rig_path = tmp_path / "cant-idw.npz"
+    assert main(["weights", str(tmp_path / "cant.npz"), "--endpoint", "idw",
+                 "-o", str(rig_path)]) == 0
     after = check_rig(rig_path, 200, 4)
     np.testing.assert_array_equal(np.asarray(after.W), np.asarray(before.W))  # kept
     np.testing.assert_allclose(after.E, stbs.endpoint_weights(before.V, before.skeleton,

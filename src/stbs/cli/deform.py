@@ -187,18 +187,6 @@ def _validate(r: _Rig, method: str) -> None:
         r.E = projection(r.V, r.sk)
 
 
-def _same_file(p: Path, inputs: list[Path]) -> Path | None:
-    if not p.exists():
-        return None
-    for q in inputs:
-        try:
-            if os.path.samefile(p, q):
-                return q
-        except OSError:
-            continue
-    return None
-
-
 def _picture(out: Path, U, r: _Rig, pose, method: str, size: int) -> None:
     """The deformed mesh drawn into a PNG (with the rig's picture when it has one)."""
     import numpy as np
@@ -256,13 +244,7 @@ def run(args: argparse.Namespace) -> int:
 
     out, ext = _output_path(args.output)
     r = _load(args)
-    src = _same_file(out, r.inputs)
-    if src is not None:
-        raise CommandError(f"output {args.output!r} is the input {str(src)!r}; the inputs "
-                          "are never overwritten, choose another output path")
     pose = read_pose(args.pose, r.sk)
-    if _same_file(out, [Path(args.pose)]) is not None:
-        raise CommandError(f"output {args.output!r} is the pose file; choose another path")
     if ext == ".png" and not 64 <= args.size <= 8192:
         raise CommandError(f"--size: expected 64 to 8192 pixels, got {args.size}")
     _validate(r, args.method)
