@@ -16,8 +16,11 @@ import math
 import numba as nb
 import numpy as np
 
-_JIT = dict(nogil=True, cache=True, parallel=True, error_model="numpy")
-_JIT1 = dict(nogil=True, cache=True, error_model="numpy")
+from .._jit import cache_enabled
+
+_CACHE = cache_enabled(__file__)
+_JIT = dict(nogil=True, cache=_CACHE, parallel=True, error_model="numpy")
+_JIT1 = dict(nogil=True, cache=_CACHE, error_model="numpy")
 
 #: Triangles per leaf of :class:`WindingTree`.
 LEAF_SIZE = 8

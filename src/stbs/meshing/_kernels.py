@@ -7,10 +7,13 @@ import math
 import numba as nb
 import numpy as np
 
-_JIT = dict(nogil=True, cache=True, parallel=True, error_model="numpy")
+from .._jit import cache_enabled
+
+_CACHE = cache_enabled(__file__)
+_JIT = dict(nogil=True, cache=_CACHE, parallel=True, error_model="numpy")
 
 
-@nb.njit(inline="always", cache=True)
+@nb.njit(inline="always", cache=_CACHE)
 def _closest(px, py, pz, ax, ay, az, bx, by, bz, cx, cy, cz):
     """Closest point of triangle abc to p (Ericson, Real-Time Collision Detection 5.1.5).
 

@@ -20,7 +20,10 @@ import math
 import numba as nb
 import numpy as np
 
-_JIT = dict(nogil=True, fastmath=True, cache=True, error_model="numpy")
+from .._jit import cache_enabled
+
+_CACHE = cache_enabled(__file__)
+_JIT = dict(nogil=True, fastmath=True, cache=_CACHE, error_model="numpy")
 
 
 @contextlib.contextmanager

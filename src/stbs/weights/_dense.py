@@ -13,7 +13,10 @@ from __future__ import annotations
 import numba as nb
 import numpy as np
 
-_JIT = dict(nogil=True, cache=True, error_model="numpy")
+from .._jit import cache_enabled
+
+_CACHE = cache_enabled(__file__)
+_JIT = dict(nogil=True, cache=_CACHE, error_model="numpy")
 
 
 @nb.njit(**_JIT)
