@@ -467,7 +467,8 @@ class Clip:
                 return self._key_poses[i + 1]
         return self.poses([t])[0]
 
-    def sample_times(self, fps: float | None = None) -> np.ndarray:
+    def sample_times(self, fps: float | None = None, *, limit: int | None = None
+                     ) -> np.ndarray:
         """The times :meth:`sample` poses: ``start + k / fps`` for k = 0, 1, ...
 
         The grid runs from the first key's time up to the last key's; the last key's
@@ -478,17 +479,21 @@ class Clip:
         ----------
         fps : float, optional
             Frames per second (> 0); default the clip's ``fps``.
+        limit : int, optional
+            Most times made (default :data:`MAX_SAMPLES`); more is an error, raised
+            before anything is allocated.
 
         Returns
         -------
         (m,) float
         """
         fps = self.fps if fps is None else _real("fps", fps, positive=True)
+        limit = MAX_SAMPLES if limit is None else int(limit)
         steps = self.duration * fps
-        m = int(math.floor(steps + _GRID_TOL)) + 1
-        if m > MAX_SAMPLES:
+        if not math.isfinite(steps) or steps + _GRID_TOL + 1 > limit:
             raise ValueError(f"fps: {fps:g} frames a second over {self.duration:g} s makes "
-                             f"{m} poses; at most {MAX_SAMPLES} are sampled")
+                             f"{steps + 1:.0f} poses; at most {limit} are sampled")
+        m = int(math.floor(steps + _GRID_TOL)) + 1
         return self.start + np.arange(m) / fps
 
     def sample(self, fps: float | None = None) -> list[Pose]:
