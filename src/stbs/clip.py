@@ -490,7 +490,7 @@ class Clip:
         fps = self.fps if fps is None else _real("fps", fps, positive=True)
         limit = MAX_SAMPLES if limit is None else int(limit)
         steps = self.duration * fps
-        if not math.isfinite(steps) or steps + _GRID_TOL + 1 > limit:
+        if not math.isfinite(steps) or steps + _GRID_TOL >= limit:
             raise ValueError(f"fps: {fps:g} frames a second over {self.duration:g} s makes "
                              f"{steps + 1:.0f} poses; at most {limit} are sampled")
         m = int(math.floor(steps + _GRID_TOL)) + 1
