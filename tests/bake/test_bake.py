@@ -114,3 +114,50 @@ def test_stbs_export(tmp_path, rig, capsys):
     assert "--bake needs --clip" in capsys.readouterr().err
     assert main(["export", str(rig_path), "-o", str(tmp_path / "c.obj")]) == 2
     assert "expected .glb, .gltf, .usda, .usdc or .usd" in capsys.readouterr().err
+
+
+def _long_clip(path, rig, seconds=3333.0):
+    """A two-key clip whose last key is ``seconds`` in: at its 10 fps, ~33,000 frames."""
+    sk = rig.skeleton
+    stbs.io.write_clip(path, stbs.Clip([(0.0, stbs.Pose.rest(sk)),
+                                        (seconds, stbs.Pose.rest(sk))], fps=10))
+    return path
+
+
+def test_frames_are_limited_before_any_work(rig, tmp_path, capsys, monkeypatch):
+    """A tiny clip file spanning an hour cannot make a bake allocate gigabytes: the
+    frames (times vertices) are checked against the limit before anything is made."""
+    import stbs.bake.core as core
+
+    n = len(rig.V)
+    assert core.frame_limit(8300) == core.MAX_BAKE_BYTES // (12 * 8300) < 33_331
+    assert core.frame_limit(1) == stbs.clip.MAX_SAMPLES
+    assert core.frame_limit(10**9, max_frames=7) == 7
+    with pytest.raises(ValueError, match="max_frames"):
+        core.frame_limit(n, max_frames=0)
+    stbs.save_rig(tmp_path / "rig.npz", rig)
+    motion = _long_clip(tmp_path / "long.json", rig)
+    out = tmp_path / "out.npz"
+    # the rig's frames of the whole clip would not fit in the bytes allowed
+    monkeypatch.setattr(core, "MAX_BAKE_BYTES", 12 * n * 1000)
+    capsys.readouterr()
+    assert main(["animate", str(tmp_path / "rig.npz"), "--motion", str(motion),
+                 "-o", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "33331 frames to bake" in err[0] and "--max-frames" in err[0]
+    assert "at most 1000 are baked" in err[0] and not out.exists()
+    # an explicit limit, or fewer frames, is the way through
+    assert main(["animate", str(tmp_path / "rig.npz"), "--motion", str(motion),
+                 "-o", str(out), "--frames", "0:900"]) == 0
+    assert np.load(out)["U"].shape == (900, n, 3)
+    assert main(["animate", str(tmp_path / "rig.npz"), "--motion", str(motion), "-o",
+                 str(tmp_path / "o2.npz"), "--frames", "0:30", "--max-frames", "20"]) == 2
+    assert "at most 20 are baked" in capsys.readouterr().err
+
+
+def test_an_hour_at_a_huge_fps_is_refused_before_sampling(rig, tmp_path):
+    clip = stbs.io.read_clip(_long_clip(tmp_path / "long.json", rig), rig.skeleton)
+    with pytest.raises(ValueError, match="at most 100000 are sampled"):
+        frame_times(clip, fps=1e6)
+    with pytest.raises(ValueError, match="are sampled"):
+        clip.sample_times(1e300)

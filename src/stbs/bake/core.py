@@ -19,14 +19,15 @@ from pathlib import Path
 
 import numpy as np
 
-from ..clip import Clip
+from ..clip import MAX_SAMPLES, Clip
 from ..io import atomic_open, read_bvh, read_clip, read_fbx, read_gltf, write_gltf, write_mesh
 from ..retargeting import retarget
 from ..rig import Rig
 from ..skinning import METHODS, Deformer
 
-__all__ = ["load_motion", "frame_times", "clip_frames", "bake", "Baked",
-           "MOTION_EXTENSIONS", "MESH_FOLDER_FORMATS", "write_frames", "output_kind"]
+__all__ = ["load_motion", "frame_times", "frame_limit", "MAX_BAKE_BYTES", "clip_frames",
+           "bake", "Baked", "MOTION_EXTENSIONS", "MESH_FOLDER_FORMATS", "write_frames",
+           "output_kind"]
 
 MOTION_EXTENSIONS = (".bvh", ".gltf", ".glb", ".fbx", ".json")
 MESH_FOLDER_FORMATS = (".obj", ".ply", ".off")
@@ -95,13 +96,46 @@ def _moves(clip: Clip) -> bool:
 _SLICE = re.compile(r"^\s*(-?\d*)\s*(?::\s*(-?\d*)\s*(?::\s*(-?\d*)\s*)?)?$")
 
 
-def frame_times(clip: Clip, *, fps: float | None = None, frames: str | None = None
-                ) -> np.ndarray:
+#: Baked frames held in memory at once (float32 x, y, z of every vertex in every frame)
+#: may take at most this many bytes unless a frame limit is given (``--max-frames``).
+MAX_BAKE_BYTES = 2 * 2**30
+
+
+def frame_limit(n_vertices: int, max_frames: int | None = None) -> int:
+    """The most frames :func:`bake` makes of a rig of ``n_vertices``: ``max_frames`` when
+    given, else as many as fit in :data:`MAX_BAKE_BYTES` (at most
+    :data:`stbs.clip.MAX_SAMPLES`)."""
+    if max_frames is not None:
+        if isinstance(max_frames, bool) or not isinstance(max_frames, (int, np.integer)) \
+                or max_frames < 1:
+            raise ValueError(f"max_frames: expected an integer >= 1, got {max_frames!r}")
+        return int(max_frames)
+    return int(max(1, min(MAX_SAMPLES, MAX_BAKE_BYTES // (12 * max(int(n_vertices), 1)))))
+
+
+def frame_times(clip: Clip, *, fps: float | None = None, frames: str | None = None,
+                limit: int | None = None, n_vertices: int | None = None) -> np.ndarray:
     """The times to bake: the clip sampled at ``fps`` (default its own), then the
-    frames ``"A:B:STEP"`` of that grid (Python slice rules, ``"A"`` alone is one frame)."""
-    times = clip.sample_times(fps)
-    if frames is None:
-        return times
+    frames ``"A:B:STEP"`` of that grid (Python slice rules, ``"A"`` alone is one frame).
+
+    ``limit`` is the most frames selected (default :data:`stbs.clip.MAX_SAMPLES`);
+    more is a ValueError before anything is baked, naming ``n_vertices`` when given.
+    """
+    cap = MAX_SAMPLES if limit is None else int(limit)
+    times = clip.sample_times(fps, limit=max(cap, MAX_SAMPLES))
+    if frames is not None:
+        times = _select(times, frames)
+    if len(times) > cap:
+        size = (f" of {n_vertices} vertices ({len(times) * 12 * n_vertices / 2**30:.1f} GiB "
+                "in memory)" if n_vertices else "")
+        raise ValueError(f"{len(times)} frames to bake{size}; at most {cap} are baked "
+                         f"at once: bake fewer with --frames A:B:STEP or a lower --fps, or "
+                         f"raise the limit with --max-frames N (max_frames=N)")
+    return times
+
+
+def _select(times: np.ndarray, frames: str) -> np.ndarray:
+    """The frames ``"A:B:STEP"`` of the grid ``times``."""
     m = _SLICE.match(str(frames))
     if m is None or not any(m.groups()):
         raise ValueError(f"frames must look like A:B:STEP (e.g. 0:100:2), got {frames!r}")
@@ -226,7 +260,8 @@ class Baked:
 
 def bake(rig: Rig, clip: Clip, out: str | os.PathLike, *, method: str = "stbs-dqs",
          fps: float | None = None, frames: str | None = None, mesh_format: str = ".obj",
-         progress: Callable[[int, int], None] | None = None, dtype=np.float32) -> Baked:
+         progress: Callable[[int, int], None] | None = None, dtype=np.float32,
+         max_frames: int | None = None) -> Baked:
     """Bake ``clip`` on ``rig`` with ``method`` and write the frames to ``out``.
 
     Parameters
@@ -243,13 +278,18 @@ def bake(rig: Rig, clip: Clip, out: str | os.PathLike, *, method: str = "stbs-dq
         ``"A:B:STEP"`` of the sampled frames.
     progress : callable, optional
         ``progress(done, total)`` after each frame.
+    max_frames : int, optional
+        The most frames baked (default: as many as fit in :data:`MAX_BAKE_BYTES`, at
+        most :data:`stbs.clip.MAX_SAMPLES`); more is a ValueError before any work.
     """
     if method not in METHODS:
         raise ValueError(f"method must be one of {', '.join(METHODS)}, got {method!r}")
     if clip.skeleton != rig.skeleton:
         raise ValueError("clip must be of the rig's skeleton")
     output_kind(out)                                  # fail before any work
-    times = frame_times(clip, fps=fps, frames=frames)
+    n = len(rig.V)
+    times = frame_times(clip, fps=fps, frames=frames, limit=frame_limit(n, max_frames),
+                        n_vertices=n)
     dfm = Deformer(rig.V, rig.skeleton, rig.W, rig.E, method=method, dtype=dtype)
     n, d = rig.V.shape
     U = np.empty((len(times), n, 3), dtype=np.float32)    # 3 columns: the kernels' layout

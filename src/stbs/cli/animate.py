@@ -58,6 +58,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="skinning method (default: %(default)s)")
     p.add_argument("--frames", metavar="A:B:STEP", help="bake these of the sampled frames")
     p.add_argument("--fps", type=float, help="sampling rate (default: the motion's)")
+    p.add_argument("--max-frames", type=int, metavar="N",
+                   help="bake at most N frames (default: as many as fit in 2 GiB of "
+                        "frames in memory, at most 100000); more is an error")
     p.add_argument("--animation", metavar="NAME",
                    help="glTF or FBX motion: the animation (stack) to bake")
     p.add_argument("--mapping", metavar="MAP.json",
@@ -112,7 +115,7 @@ def run(args: argparse.Namespace) -> int:
 
     if args.manifest is not None:
         single = [k for k in ("rig", "motion", "output", "frames", "fps", "animation",
-                              "mapping") if getattr(args, k) is not None]
+                              "mapping", "max_frames") if getattr(args, k) is not None]
         if single:
             raise CommandError(f"--manifest gives every job; drop {', '.join(single)} "
                                f"(put them in the manifest's jobs)")
@@ -155,7 +158,8 @@ def run(args: argparse.Namespace) -> int:
               f"({clip.fps:g} fps) of the rig's {rig.skeleton.n_bones} bones")
         return 0
     done = bake(rig, clip, args.output, method=args.method, fps=args.fps, frames=args.frames,
-                mesh_format=args.mesh_format, progress=_bar(f"bake ({args.method})"))
+                mesh_format=args.mesh_format, progress=_bar(f"bake ({args.method})"),
+                max_frames=args.max_frames)
     print(f"baked {done.frames} frames in {done.total_s:.2f} s ({done.fps:.1f} frames/s; "
           f"the skinning alone {done.skinning_s:.2f} s)", file=sys.stderr)
     print(f"wrote {done.path}: {done.frames} frames of {len(rig.V)} vertices by {args.method}")
