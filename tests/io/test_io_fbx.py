@@ -575,3 +575,39 @@ def test_without_ufbx_the_error_names_the_extra(bar_fbx, monkeypatch):
     monkeypatch.setitem(sys.modules, "ufbx", None)
     with pytest.raises(OptionalDependencyError, match=r"stbs-skinning\[fbx\]"):
         read_fbx(bar_fbx[0])
+
+
+def _stack_ending_at(data: bytes, seconds: float) -> bytes:
+    """A binary FBX whose animation stacks' LocalStop/ReferenceStop (KTime, 46186158000
+    ticks a second) are moved to ``seconds``: each is a P70 record of three strings
+    ('S', uint32 length, bytes) and an int64 ('L')."""
+    import re
+    import struct
+
+    b = bytearray(data)
+    for m in re.finditer(rb"LocalStop|ReferenceStop", b):
+        i = m.end()
+        for _ in range(3):
+            assert b[i:i + 1] == b"S"
+            i += 5 + struct.unpack_from("<I", b, i + 1)[0]
+        assert b[i:i + 1] == b"L"
+        struct.pack_into("<q", b, i + 1, int(seconds * 46186158000))
+    return bytes(b)
+
+
+def test_an_animation_claiming_days_is_refused_before_sampling(shared_data, tmp_path,
+                                                               capsys):
+    """A stack whose end is 11 days in would be sampled at 24 fps (24 million frames of
+    every node's matrix): refused with one line; the rig itself still reads."""
+    src = shared_data / "characters" / "fbx" / FILES[0]
+    bad = tmp_path / "long.fbx"
+    bad.write_bytes(_stack_ending_at(src.read_bytes(), 1e6))
+    with pytest.raises(FormatError, match="an animation too long to sample"):
+        read_fbx(bad)
+    capsys.readouterr()
+    assert main(["animate", str(bad), "--motion", str(bad), "-o",
+                 str(tmp_path / "o.npz")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "more than 100000 frames" in err[0]
+    assert not (tmp_path / "o.npz").exists()
+    assert main(["export", str(bad), "-o", str(tmp_path / "rig.glb")]) == 0

@@ -68,7 +68,7 @@ from pathlib import Path
 import numpy as np
 
 from .._optional import OptionalDependencyError, require
-from ..clip import Clip
+from ..clip import MAX_SAMPLES, Clip
 from ..rig.joints import clip_from_joint_matrices, rig_from_joints
 from ..rig.model import Rig
 from ._parse import input_path, suffix
@@ -138,6 +138,7 @@ def mat(m):
 
 
 src, dst, want_anims = sys.argv[1], sys.argv[2], sys.argv[3] == "1"
+MAX_FRAMES, MAX_BYTES = int(sys.argv[4]), int(sys.argv[5])
 try:
     scene = ufbx.load_file(src, file_format=ufbx.FileFormat.FBX, ignore_embedded=True,
                            ignore_missing_external_files=True)
@@ -226,13 +227,20 @@ meta["evaluated"] = need
 fps = meta["fps"] if np.isfinite(meta["fps"]) and meta["fps"] > 0 else 30.0
 for s, stack in enumerate(items(scene.anim_stacks)):
     t0, t1 = float(stack.time_begin), float(stack.time_end)
-    n = max(int(np.floor((t1 - t0) * fps + 1e-6)), 0)
+    span = (t1 - t0) * fps
+    n = max(int(np.floor(span + 1e-6)), 0) if np.isfinite(span) and span < MAX_FRAMES else 0
     times = t0 + np.arange(n + 1) / fps
     if t1 - times[-1] > 1e-6 / fps:
         times = np.append(times, t1)
     meta["stacks"].append({"name": stack.name, "begin": t0, "end": t1})
     if not want_anims or not need:
         continue
+    if not (np.isfinite(t0) and np.isfinite(span)) or span + 2 > MAX_FRAMES \
+            or (span + 2) * len(need) * 128 > MAX_BYTES:
+        done(3, json.dumps({"error": "limit", "message":
+                            f"animation stack {stack.name!r} from {t0:g} s to {t1:g} s at "
+                            f"{fps:g} fps over {len(need)} nodes: more than {MAX_FRAMES} "
+                            f"frames or {MAX_BYTES >> 20} MiB of node matrices"}))
     anim = stack.anim
     G = np.empty((len(times), len(need), 4, 4))
     for k, t in enumerate(times):
@@ -251,6 +259,30 @@ done(0)
 '''
 
 
+#: The reading process may use this many bytes of memory plus MEMORY_FACTOR times the
+#: file's size, and this many seconds plus one per MiB of file.
+MEMORY_BASE = 2 * 2**30
+MEMORY_FACTOR = 64
+TIMEOUT_BASE = 120.0
+
+
+def _limit_memory(nbytes: int):
+    """A ``preexec_fn`` capping the child's address space (where the OS allows)."""
+    def limit() -> None:
+        try:
+            import resource
+
+            # the interpreter, numpy and ufbx map ~1 GiB of address space before reading
+            cap = nbytes + 2**30
+            soft, hard = resource.getrlimit(resource.RLIMIT_AS)
+            if hard != resource.RLIM_INFINITY:
+                cap = min(cap, hard)
+            resource.setrlimit(resource.RLIMIT_AS, (cap, hard))
+        except (ImportError, ValueError, OSError):
+            pass
+    return limit if os.name == "posix" else None
+
+
 def _run_child(p: Path, anims: bool) -> tuple[dict, dict[str, np.ndarray]]:
     """The raw scene: the child's JSON record and arrays (see ``_WORKER``)."""
     require("ufbx", f"reading the FBX file {str(p)!r}")
@@ -259,9 +291,18 @@ def _run_child(p: Path, anims: bool) -> tuple[dict, dict[str, np.ndarray]]:
         raise FormatError(p, _WHAT, "an empty file")
     with tempfile.TemporaryDirectory(prefix="stbs-fbx-") as tmp:
         dst = os.path.join(tmp, "scene.npz")
-        proc = subprocess.run([sys.executable, "-c", _WORKER, str(p.resolve()), dst,
-                               "1" if anims else "0"], cwd=tmp, capture_output=True,
-                              text=True, errors="replace", check=False)
+        size = p.stat().st_size
+        memory = MEMORY_BASE + MEMORY_FACTOR * size
+        try:
+            proc = subprocess.run([sys.executable, "-c", _WORKER, str(p.resolve()), dst,
+                                   "1" if anims else "0", str(MAX_SAMPLES), str(memory // 2)],
+                                  cwd=tmp, capture_output=True, text=True, errors="replace",
+                                  check=False, timeout=TIMEOUT_BASE + size / 2**20,
+                                  preexec_fn=_limit_memory(memory))
+        except subprocess.TimeoutExpired:
+            raise FormatError(p, _WHAT, f"a file the FBX reader did not finish in "
+                                        f"{TIMEOUT_BASE + size / 2**20:.0f} s (a hostile or "
+                                        "damaged file?)") from None
         said = None
         for line in reversed(proc.stdout.splitlines()):
             if line.startswith('{"error"'):
@@ -274,7 +315,9 @@ def _run_child(p: Path, anims: bool) -> tuple[dict, dict[str, np.ndarray]]:
                 "'stbs-skinning[fbx]'")
         if said is not None:
             msg = said["message"].strip().splitlines()[0] if said["message"].strip() else ""
-            if "not an fbx" in msg.lower():
+            if said["error"] == "limit":
+                found = f"an animation too long to sample ({msg})"
+            elif "not an fbx" in msg.lower():
                 found = f"another kind of file (it starts {head[:16]!r})"
             elif head.startswith(b"Kaydara FBX Binary"):
                 found = f"a binary FBX file that is truncated or damaged (ufbx: {msg})"
