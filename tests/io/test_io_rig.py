@@ -192,8 +192,8 @@ def _broken(good, **changes):
     (dict(meta_json=np.array("[1, 2]")), r"'meta_json' as the text of a JSON object"),
     (dict(W_data=np.ones(1)), r"expected either 'W' or the CSR keys"),
     (dict(names=np.array([None, None], dtype=object)),
-     r"expected 'names' as a plain numeric or unicode array \(object arrays are never "
-     r"unpickled\), found Object arrays cannot be loaded"),
+     r"expected member 'names': a numeric or text array \(object arrays are never "
+     r"unpickled\), found dtype object"),
 ])
 def test_broken_rig_files(tmp_path, good, changes, match):
     p = tmp_path / "bad.npz"
@@ -223,7 +223,7 @@ def test_broken_sparse_parts(tmp_path, good):
 def test_object_array_is_never_unpickled(tmp_path, good):
     p = tmp_path / "o.npz"
     np.savez(p, **_broken(good, V=np.array([[0.0, 1.0]], dtype=object)))
-    with pytest.raises(FormatError, match=r"expected 'V' as a plain .* found Object arrays"):
+    with pytest.raises(FormatError, match=r"expected member 'V': .* found dtype object"):
         load_rig(p)
 
 
@@ -271,3 +271,58 @@ def test_offset_children_round_trip(tmp_path):
     assert back.skeleton == sk and back.skeleton.parents.tolist() == [-1, 0]
     # without P the leg would be a root
     assert stbs.Skeleton(sk.C, sk.BE).parents.tolist() == [-1, -1]
+
+
+def _bomb(path, rig_path, key="W", rows=50_000_000):
+    """``rig_path``'s archive with member ``key`` replaced by ``rows`` x 2 zeros, deflated
+    (a thousandfold smaller) and streamed, so that writing it costs no memory."""
+    import io
+    import zipfile
+
+    src = np.load(rig_path)
+    with zipfile.ZipFile(path, "w", compression=zipfile.ZIP_DEFLATED) as out:
+        for k in src.files:
+            with out.open(f"{k}.npy", "w", force_zip64=True) as f:
+                if k != key:
+                    np.lib.format.write_array(f, src[k], allow_pickle=False)
+                    continue
+                head = io.BytesIO()
+                np.lib.format.write_array_header_1_0(
+                    head, {"descr": "<f8", "fortran_order": False, "shape": (rows, 2)})
+                f.write(head.getvalue())
+                zeros, left = bytes(1 << 22), rows * 16
+                while left > 0:
+                    f.write(zeros[:left])
+                    left -= len(zeros)
+    return path
+
+
+def test_a_zip_bomb_is_refused_before_it_is_inflated(tmp_path):
+    """A rig of a few hundred kilobytes whose weights inflate to 800 MB: refused from the
+    member's header, before decompressing (not after, by the shape check)."""
+    good = tmp_path / "good.npz"
+    save_rig(good, small_rig())
+    bomb = _bomb(tmp_path / "bomb.npz", good)
+    assert bomb.stat().st_size < 2_000_000
+    with pytest.raises(FormatError, match=r"member 'W' of shape \(50000000, 2\) needing "
+                                          r"800000000 bytes"):
+        load_rig(bomb)
+
+
+def test_a_member_shorter_than_its_header_says_is_refused(tmp_path):
+    import io
+    import zipfile
+
+    good = tmp_path / "good.npz"
+    save_rig(good, small_rig())
+    src = np.load(good)
+    bad = tmp_path / "short.npz"
+    with zipfile.ZipFile(bad, "w") as out:
+        for k in src.files:
+            data = io.BytesIO()
+            np.lib.format.write_array(data, src[k], allow_pickle=False)
+            raw = data.getvalue()
+            out.writestr(f"{k}.npy", raw[:-8] if k == "V" else raw)
+    with pytest.raises(FormatError, match=r"member 'V' of \d+ bytes .* found \d+ bytes in "
+                                          r"the archive"):
+        load_rig(bad)

@@ -57,7 +57,7 @@ def test_real_arm_weights(shared_data):
     (lambda p: np.savez(p, A=W0, B=W0), r"expected an .npz with a single array or the key "
      r"'W', found keys \['A', 'B'\]"),
     (lambda p: np.savez(p, W=np.array([{"a": 1}], dtype=object)),
-     r"expected numeric arrays without pickled objects"),
+     r"object arrays are never unpickled\), found dtype object"),
     (lambda p: np.savez(p, W=np.array([[1.0, np.nan]])), r"expected finite weights in key "
      r"'W', found nan at \(row, col\) = \(0, 1\)"),
     (lambda p: np.savez(p, W=np.zeros((2, 2, 2))), r"expected a 1-D or 2-D array"),
@@ -75,7 +75,7 @@ def test_broken_npz(tmp_path, setup, match):
 def test_object_npy_is_never_unpickled(tmp_path):
     p = tmp_path / "o.npy"
     np.save(p, np.array([None, 1], dtype=object), allow_pickle=True)
-    with pytest.raises(FormatError, match="without pickled objects"):
+    with pytest.raises(FormatError, match=r"never unpickled\), found dtype object"):
         read_weights(p)
 
 
@@ -96,3 +96,18 @@ def test_unknown_extension_and_missing(tmp_path):
         read_weights(p)
     with pytest.raises(FileNotFoundError, match="gone.npy"):
         read_weights(tmp_path / "gone.npy")
+
+
+def test_an_npy_header_larger_than_the_file_is_refused_unread(tmp_path):
+    """A 200-byte .npy whose header declares 16 GB of weights: refused from the header,
+    before NumPy allocates the array."""
+    import io
+
+    head = io.BytesIO()
+    np.lib.format.write_array_header_1_0(
+        head, {"descr": "<f8", "fortran_order": False, "shape": (10**9, 2)})
+    p = tmp_path / "W.npy"
+    p.write_bytes(head.getvalue() + bytes(64))
+    with pytest.raises(FormatError, match=r"an \.npy file of 16000000128 bytes .* found "
+                                          r"192 bytes"):
+        read_weights(p)

@@ -55,6 +55,7 @@ import scipy.sparse as sp
 
 from ..rig.model import Rig
 from ._atomic import atomic_open
+from ._npz import Budget
 from ._parse import input_path, suffix
 from .errors import FormatError
 
@@ -207,10 +208,13 @@ class _Arrays:
 
     def __init__(self, p, z):
         self.p, self.z = p, z
+        self.budget = Budget(p)
 
     def __getitem__(self, key: str) -> np.ndarray:
         try:
-            return self.z[key]
+            return self.budget.npz_member(self.z, key)
+        except FormatError:
+            raise
         except ValueError as exc:
             raise FormatError(self.p, f"'{key}' as a plain numeric or unicode array (object "
                               "arrays are never unpickled)", str(exc)) from None

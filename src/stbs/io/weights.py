@@ -9,6 +9,7 @@ import zlib
 import numpy as np
 import scipy.sparse as sp
 
+from ._npz import Budget
 from ._parse import input_path, parse_block, read_lines, suffix
 from .dmat import read_dmat
 from .errors import FormatError
@@ -81,15 +82,13 @@ def read_weights(path: str | os.PathLike):
         return _read_csv(p)
     # np.load is given an open handle so that a broken archive cannot leak it.
     with open(p, "rb") as fh:
+        if ext == ".npy":
+            return _as_matrix(p, Budget(p).npy(fh), "the .npy array")
         try:
             obj = np.load(fh, allow_pickle=False)
         except (ValueError, OSError, EOFError, zipfile.BadZipFile) as exc:
             raise FormatError(p, f"a NumPy {ext} file without pickled objects",
                               f"an unreadable file ({exc})") from None
-        if ext == ".npy":
-            if not isinstance(obj, np.ndarray):
-                raise FormatError(p, "a .npy array", type(obj).__name__)
-            return _as_matrix(p, obj, "the .npy array")
         if not hasattr(obj, "files"):
             raise FormatError(p, "an .npz archive", f"a {type(obj).__name__}")
         with obj:
@@ -101,13 +100,16 @@ def read_weights(path: str | os.PathLike):
 
 def _from_npz(p, obj):
     keys = list(obj.files)
+    budget = Budget(p)
     try:
         if _SPARSE_KEYS <= set(keys):
+            for k in _SPARSE_KEYS:
+                budget.check_member(obj, k)
             return _as_matrix(p, sp.load_npz(p), "the sparse matrix")
         if "W" in keys:
-            return _as_matrix(p, obj["W"], "key 'W'")
+            return _as_matrix(p, budget.npz_member(obj, "W"), "key 'W'")
         if len(keys) == 1:
-            return _as_matrix(p, obj[keys[0]], f"key {keys[0]!r}")
+            return _as_matrix(p, budget.npz_member(obj, keys[0]), f"key {keys[0]!r}")
     except ValueError as exc:
         if isinstance(exc, FormatError):
             raise
