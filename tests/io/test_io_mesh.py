@@ -387,3 +387,15 @@ def test_folder_instead_of_file(tmp_path):
     d.mkdir()
     with pytest.raises(IsADirectoryError, match="dir.obj"):
         read_mesh(d)
+
+
+def test_a_ply_declaring_more_than_it_holds_is_refused_before_reading(tmp_path):
+    """A 180-byte PLY declaring a trillion vertices: one error from its header, before
+    meshio allocates anything."""
+    p = tmp_path / "big.ply"
+    p.write_text("ply\nformat binary_little_endian 1.0\nelement vertex 1000000000000\n"
+                 "property float x\nproperty float y\nproperty float z\nelement face 1\n"
+                 "property list uchar int vertex_indices\nend_header\n")
+    with pytest.raises(FormatError, match=r"a PLY file of at least 12000000000001 bytes .* "
+                                          r"\(1000000000000 vertex, 1 face\)"):
+        read_mesh(p)

@@ -103,8 +103,54 @@ _MESHIO_SURFACE = ("triangle", "quad", "polygon")
 _MESHIO_IGNORED = ("vertex", "line")
 
 
+_PLY_SIZES = {"char": 1, "uchar": 1, "int8": 1, "uint8": 1, "short": 2, "ushort": 2,
+              "int16": 2, "uint16": 2, "int": 4, "uint": 4, "int32": 4, "uint32": 4,
+              "float": 4, "float32": 4, "double": 8, "float64": 8}
+
+
+def _check_ply_header(p) -> None:
+    """A PLY's declared element counts checked against the file's size before meshio
+    allocates them: each element takes at least its fixed properties' bytes (binary) or
+    two characters (ASCII: a digit and a separator)."""
+    size = p.stat().st_size
+    with open(p, "rb") as fh:
+        head = fh.read(1 << 16)
+    if not head.startswith(b"ply"):
+        return
+    end = head.find(b"end_header")
+    if end < 0:
+        raise FormatError(p, "a PLY header ending in 'end_header' within 64 KiB", "none")
+    binary, elements = False, []
+    for line in head[:end].decode("latin-1").splitlines():
+        w = line.split()
+        if not w:
+            continue
+        if w[0] == "format":
+            binary = len(w) > 1 and w[1].startswith("binary")
+        elif w[0] == "element" and len(w) == 3:
+            try:
+                count = int(w[2])
+            except ValueError:
+                raise FormatError(p, "a PLY element count", repr(line[:60])) from None
+            if count < 0:
+                raise FormatError(p, "a PLY element count >= 0", repr(line[:60]))
+            elements.append([w[1], count, 0])
+        elif w[0] == "property" and elements:
+            item = (_PLY_SIZES.get(w[2], 1) if w[1] == "list" and len(w) > 2
+                    else _PLY_SIZES.get(w[1], 1))
+            elements[-1][2] += item if binary else 2
+    need = sum(count * max(each, 1 if binary else 2) for _, count, each in elements)
+    if need > size:
+        what = ", ".join(f"{c} {n}" for n, c, _ in elements)
+        raise FormatError(p, f"a PLY file of at least {need} bytes for the elements its "
+                          f"header declares ({what})", f"{size} bytes")
+
+
 def _read_meshio(p) -> tuple[np.ndarray, list[np.ndarray], np.ndarray | None]:
     import meshio  # lazy: only these formats need it
+
+    if p.suffix.lower() == ".ply":
+        _check_ply_header(p)
 
     log = io.StringIO()
     try:
