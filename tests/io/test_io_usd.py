@@ -108,3 +108,17 @@ def test_stbs_export_usd_and_errors(tmp_path, rig, clip, capsys):
     with pytest.raises(ValueError, match="supported extensions are .usda, .usdc, .usd"):
         write_usd(tmp_path / "x.obj", rig)
     assert not (tmp_path / "x.usda").exists()
+
+
+def test_joint_paths_of_a_chain_thousands_deep():
+    """Joint paths are built without recursion: a 3000-bone chain (a capture's deep
+    hierarchy) gets its paths, each its parent's plus its own name."""
+    from stbs.io.usd import _joint_paths
+
+    n = 3000
+    parents = np.arange(-1, n - 1)
+    paths = _joint_paths([f"j{i}" for i in range(n)], parents)
+    assert paths[0] == "j0" and paths[2] == "j0/j1/j2"
+    assert all(paths[i] == f"{paths[i - 1]}/j{i}" for i in range(1, n))
+    shuffled = _joint_paths(["a", "b", "c"], np.array([2, 0, -1]))
+    assert shuffled == ["c/a", "c/a/b", "c"]

@@ -52,14 +52,15 @@ def _joint_paths(names: list[str], parents: np.ndarray) -> list[str]:
         seen.add(s)
         safe.append(s)
     out = [""] * len(names)
-
-    def path(i):
-        if not out[i]:
-            p = parents[i]
-            out[i] = safe[i] if p < 0 else f"{path(p)}/{safe[i]}"
-        return out[i]
-
-    return [path(i) for i in range(len(names))]
+    for i in range(len(names)):         # iteratively: a chain may be thousands deep
+        chain = [i]
+        while not out[chain[-1]] and parents[chain[-1]] >= 0 and not out[parents[chain[-1]]]:
+            chain.append(parents[chain[-1]])
+        for k in reversed(chain):
+            if not out[k]:
+                p = parents[k]
+                out[k] = safe[k] if p < 0 else f"{out[p]}/{safe[k]}"
+    return out
 
 
 def write_usd(path: str | os.PathLike, rig: Rig, clip: Clip | None = None, *,
