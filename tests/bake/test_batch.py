@@ -101,7 +101,7 @@ def _parts(folder):
     """The finished part files (not a writer's temporary file of one)."""
     import re
 
-    part = re.compile(r"^\.long-[0-9a-f]{16}\.part\d{5}\.npz$")
+    part = re.compile(r"^\.long-[0-9a-f]{16}\.npz\.part\d{5}\.npz$")
     return sorted(p for p in (folder / "out").iterdir() if part.match(p.name))
 
 
@@ -168,7 +168,7 @@ def test_manifest_errors(tmp_path, inputs, capsys):
                        ([{"rig": "none.npz", "motion": "m.bvh", "output": "o.npz"}],
                         "rig 'none.npz' not found"),
                        ([{"rig": str(inputs / "arm.npz"), "motion": str(inputs / "wave.bvh"),
-                          "output": "o.npz", "method": "fast"}], "method must be one of"),
+                          "output": "o.npz", "method": "fast"}], "'method' must be one of"),
                        ([{"rig": str(inputs / "arm.npz"), "motion": str(inputs / "wave.bvh"),
                           "output": "o.npz", "colour": 1}], "unknown keys ['colour']")):
         bad.write_text(json.dumps(doc))
@@ -177,3 +177,253 @@ def test_manifest_errors(tmp_path, inputs, capsys):
         assert len(err) == 1 and match in err[0], err
     assert main(["animate", "--manifest", str(bad), "--workers", "2", "--scheduler", "x"]) == 2
     assert "not both" in capsys.readouterr().err
+
+
+# ------------------------------------------------ kills at every moment, damaged files
+def _one_job(folder, inputs, output="out/bend.npz", **extra):
+    """A manifest of one small job (6 frames of the bent arm), and the job."""
+    (folder / "out").mkdir(parents=True, exist_ok=True)
+    job = {"rig": str(inputs / "arm.npz"), "motion": str(inputs / "bend.json"),
+           "output": output, "method": "stbs-lbs", "frames": "0:11:2", **extra}
+    m = folder / "one.json"
+    m.write_text(json.dumps([job]))
+    return m
+
+
+def _names(folder):
+    return sorted(p.name for p in (folder / "out").iterdir())
+
+
+def _final_and_parts(m):
+    from stbs.bake.batch import _final, _part
+
+    job = read_manifest(m)[0]
+    key = job_hash(job)
+    return _final(job, key), [_part(job, key, c) for c in range(3)]    # 6 frames, chunk 2
+
+
+def _killed(monkeypatch, when):
+    """Make the run die like a killed process: before the output's write ("before"), or
+    after it, before the parts are removed ("after")."""
+    import stbs.bake.batch as batch
+
+    real = batch.write_frames
+
+    def write_frames(*args, **kwargs):
+        if when == "after":
+            real(*args, **kwargs)
+        raise KeyboardInterrupt("killed")
+    monkeypatch.setattr(batch, "write_frames", write_frames)
+
+
+@pytest.mark.parametrize("output", ["out/bend.npz", "out/.odd [1]*.glb"])
+def test_a_run_killed_after_its_output_leaves_no_parts_on_the_rerun(tmp_path, inputs,
+                                                                    monkeypatch, output):
+    m = _one_job(tmp_path, inputs, output=output)
+    final, parts = _final_and_parts(m)
+    with monkeypatch.context() as mp:
+        _killed(mp, "after")
+        with pytest.raises(KeyboardInterrupt):
+            run_manifest(m, chunk=2)
+    assert final.is_file() and all(p.is_file() for p in parts)
+    # and a writer killed mid-write left its temporary files (a part's, the output's)
+    (final.parent / f".{parts[1].name}.k1ll3d_x.tmp.npz").write_bytes(b"PK\3\4")
+    (final.parent / f".{final.name}.k1ll3d_y.tmp{final.suffix}").write_bytes(b"PK\3\4")
+    (final.parent / f".{final.name}.other").write_bytes(b"")      # not the batch's: kept
+    report = run_manifest(m, chunk=2)
+    assert report.skipped == [str(final)] and report.written == [] and report.frames == 0
+    assert _names(tmp_path) == sorted([final.name, f".{final.name}.other"])   # output kept
+    assert len(report.removed) == 5 and "5 leftover files removed" in report.summary()
+
+
+def test_a_run_killed_before_its_output_rebakes_only_damaged_parts(tmp_path, inputs,
+                                                                   monkeypatch):
+    ref = tmp_path / "ref"
+    run_manifest(_one_job(ref, inputs), chunk=2)
+    m = _one_job(tmp_path, inputs)
+    final, parts = _final_and_parts(m)
+    with monkeypatch.context() as mp:
+        _killed(mp, "before")
+        with pytest.raises(KeyboardInterrupt):
+            run_manifest(m, chunk=2)
+    assert not final.exists() and all(p.is_file() for p in parts)
+    # killed during a part's write: a cut temporary file; and a part cut short on disk
+    (final.parent / f".{parts[2].name}.k1ll3d_x.tmp.npz").write_bytes(b"PK\3\4")
+    parts[1].write_bytes(parts[1].read_bytes()[:300])
+    # killed during the output's write: its temporary file
+    (final.parent / f".{final.name}.k1ll3d_y.tmp.npz").write_bytes(b"PK\3\4")
+    report = run_manifest(m, chunk=2)
+    assert report.written == [str(final)] and report.frames == 2     # the cut part alone
+    assert _outputs(tmp_path) == _outputs(ref)           # the same bytes, nothing left over
+
+
+def test_a_part_damaged_after_its_check_is_rebaked_not_joined(tmp_path, inputs, monkeypatch):
+    import stbs.bake.batch as batch
+
+    ref = tmp_path / "ref"
+    run_manifest(_one_job(ref, inputs), chunk=2)
+    m = _one_job(tmp_path, inputs)
+    real = batch.bake_chunk
+
+    def bake_chunk(job, rd, md, times, part):
+        out = real(job, rd, md, times, part)
+        if part.endswith("00001.npz"):
+            data = bytearray(open(part, "rb").read())
+            data[-200] ^= 0xFF                           # a flipped bit inside U
+            open(part, "wb").write(bytes(data))
+        return out
+    monkeypatch.setattr(batch, "bake_chunk", bake_chunk)
+    report = run_manifest(m, chunk=2)
+    assert report.parts_rebaked == 1
+    assert _outputs(tmp_path) == _outputs(ref)
+
+
+@pytest.mark.parametrize("damage", ["empty", "cut", "other frames", "not a zip"])
+def test_a_damaged_npz_output_is_rebaked(tmp_path, inputs, damage):
+    m = _one_job(tmp_path, inputs)
+    run_manifest(m, chunk=4)
+    final, _ = _final_and_parts(m)
+    good = final.read_bytes()
+    if damage == "empty":
+        final.write_bytes(b"")
+    elif damage == "cut":
+        final.write_bytes(good[:len(good) // 2])
+    elif damage == "other frames":                       # a readable .npz of 5 frames
+        with np.load(final) as z:
+            np.savez(final, **{k: z[k][:5] if k in ("U", "times") else z[k] for k in z})
+    else:
+        final.write_bytes(b"\0" * len(good))
+    report = run_manifest(m, chunk=4)
+    assert report.rebaked == [str(final)] and report.written == [str(final)]
+    assert report.frames == 6 and "1 damaged output rebaked" in report.summary()
+    assert final.read_bytes() == good and _names(tmp_path) == [final.name]
+
+
+@pytest.mark.parametrize("damage", ["glb length", "glb magic", "glb cut", "gltf cut"])
+def test_a_damaged_gltf_output_is_rebaked(tmp_path, inputs, damage):
+    ext = damage.split()[0]
+    m = _one_job(tmp_path, inputs, output=f"out/bend.{ext}")
+    run_manifest(m, chunk=4)
+    final, _ = _final_and_parts(m)
+    good = final.read_bytes()
+    assert run_manifest(m, chunk=4).skipped == [str(final)]            # a sound file is done
+    if damage == "glb length":
+        final.write_bytes(good + b"\0" * 4)              # the header's length disagrees
+    elif damage == "glb magic":
+        final.write_bytes(b"glTX" + good[4:])
+    else:
+        final.write_bytes(good[:len(good) - 9])
+    report = run_manifest(m, chunk=4)
+    assert report.rebaked == [str(final)] and final.read_bytes() == good
+
+
+def test_the_same_job_to_two_formats_writes_both(tmp_path, inputs):
+    jobs = [{"rig": str(inputs / "arm.npz"), "motion": str(inputs / "bend.json"),
+             "output": f"out/bend.{ext}", "frames": "0:11:2"} for ext in ("npz", "glb")]
+    (tmp_path / "out").mkdir()
+    m = tmp_path / "two.json"
+    m.write_text(json.dumps(jobs))
+    report = run_manifest(m, chunk=2)
+    names = _names(tmp_path)
+    assert len(report.written) == 2 and len(names) == 2, names
+    assert {n.rsplit(".", 1)[1] for n in names} == {"npz", "glb"} and report.frames == 12
+
+
+# ------------------------------------------------------------- what a manifest may say
+def test_a_folder_at_the_output_is_an_error(tmp_path, inputs):
+    m = _one_job(tmp_path, inputs)
+    final, _ = _final_and_parts(m)
+    final.mkdir()
+    with pytest.raises(ValueError, match=r"job 0: .*is not a regular file") as err:
+        run_manifest(m)
+    assert str(final) in str(err.value) and str(m) in str(err.value)
+
+
+def _jobs(folder, inputs, outputs, name="m.json"):
+    (folder / "out").mkdir(parents=True, exist_ok=True)
+    jobs = [{"rig": str(inputs / "arm.npz"), "motion": str(inputs / "bend.json"),
+             "output": o, "frames": "0:3"} for o in outputs]
+    m = folder / name
+    m.write_text(json.dumps(jobs))
+    return m
+
+
+def test_one_output_listed_twice_is_refused(tmp_path, inputs, capsys):
+    for outs in (["out/a.npz", "out/b.npz", "out/../out/a.npz"],
+                 ["out/a.npz", "out/b.npz", str(tmp_path / "out" / "a.npz")]):
+        m = _jobs(tmp_path, inputs, outs)
+        with pytest.raises(ValueError, match=r"jobs 0 and 2 .*same output"):
+            read_manifest(m)
+        assert main(["animate", "--manifest", str(m)]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and "jobs 0 and 2" in err[0] and str(m) in err[0], err
+    assert not any((tmp_path / "out").iterdir())
+
+
+def test_outputs_outside_the_manifests_folder_need_an_option(tmp_path, inputs, capsys):
+    (tmp_path / "elsewhere").mkdir()
+    (tmp_path / "in" / "out").mkdir(parents=True)
+    (tmp_path / "in" / "link").symlink_to(tmp_path / "elsewhere")
+    for out in ("../elsewhere/x.npz", str(tmp_path / "elsewhere" / "x.npz"), "link/x.npz"):
+        m = _jobs(tmp_path / "in", inputs, ["out/a.npz", out])
+        with pytest.raises(ValueError, match=r"job 1: output .*outside the manifest's folder"):
+            run_manifest(m)
+        assert main(["animate", "--manifest", str(m)]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and "--outputs-anywhere" in err[0], err
+        assert not any((tmp_path / "elsewhere").iterdir()) and not any((tmp_path / "in" /
+                                                                         "out").iterdir())
+    assert main(["animate", "--manifest", str(m), "--outputs-anywhere"]) == 0
+    capsys.readouterr()
+    assert len(list((tmp_path / "elsewhere").iterdir())) == 1
+    assert len(run_manifest(m, outputs_anywhere=True).skipped) == 2
+    # an absolute path inside the folder is fine
+    inside = _jobs(tmp_path / "in", inputs, [str(tmp_path / "in" / "out" / "b.npz")])
+    assert len(run_manifest(inside).written) == 1
+
+
+def test_inputs_are_never_outputs(tmp_path, inputs):
+    rig = tmp_path / "out" / "arm.npz"
+    (tmp_path / "out").mkdir()
+    rig.write_bytes((inputs / "arm.npz").read_bytes())
+    jobs = [{"rig": str(rig), "motion": str(inputs / "bend.json"), "output": "out/a.npz"},
+            {"rig": str(inputs / "arm.npz"), "motion": str(inputs / "bend.json"),
+             "output": "out/arm.npz"}]
+    m = tmp_path / "m.json"
+    m.write_text(json.dumps(jobs))
+    with pytest.raises(ValueError, match=r"job 1: output .* is the rig of job 0"):
+        read_manifest(m)
+    # an input named as a batch's part or temporary file (which a run removes)
+    part = tmp_path / "out" / ".a-0123456789abcdef.npz.part00000.npz"
+    part.write_bytes(rig.read_bytes())
+    m.write_text(json.dumps([{**jobs[0], "rig": str(part)}]))
+    with pytest.raises(ValueError, match=r"job 0: rig .* is named as a batch's part"):
+        read_manifest(m)
+
+
+def test_manifest_json_and_fields_are_checked(tmp_path, inputs, capsys):
+    bad = tmp_path / "bad.json"
+    job = {"rig": str(inputs / "arm.npz"), "motion": str(inputs / "bend.json"),
+           "output": "o.npz"}
+    for text, match in (("[" * 100 + "]" * 100, "nested at most"),
+                        ('[{"fps": NaN}]', "finite numbers"),
+                        ("[" + "1" * 30 + "]", "digits"),
+                        (b"[\xff]", "UTF-8"),
+                        (json.dumps([job, {**job, "fps": "fast"}]), "job 1: 'fps' must be"),
+                        (json.dumps([{**job, "fps": 0}]), "job 0: 'fps' must be"),
+                        (json.dumps([{**job, "twist": "all"}]), "job 0: 'twist' must be one"),
+                        (json.dumps([{**job, "frames": 3}]), "job 0: 'frames' must be"),
+                        (json.dumps([{**job, "frames": "a:b"}]), "job 0: frames must look"),
+                        (json.dumps([{**job, "output": "o.txt"}]), "job 0: output 'o.txt'"),
+                        (json.dumps([{**job, "output": "no/o.npz"}]), "job 0: output folder"),
+                        (json.dumps([{**job, "rig": "a\0b"}]), "job 0: rig")):
+        if isinstance(text, str):
+            bad.write_text(text)
+        else:
+            bad.write_bytes(text)
+        with pytest.raises(ValueError, match=match) as err:
+            run_manifest(bad)
+        assert str(bad) in str(err.value)
+        assert main(["animate", "--manifest", str(bad)]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and match in err[0], err

@@ -36,10 +36,12 @@ joint"}) names every bone's joint instead.
 
 With --manifest BATCH.json, bake many rigs × motions on Dask: the manifest is a
 JSON list of {"rig", "motion", "output", "method"} (paths relative to it; also
-"fps", "frames", "mapping", "twist", "stretch"). In-process by default, a local
-cluster of --workers N processes, or an existing cluster at --scheduler ADDRESS.
-Each output is named from a hash of its inputs (OUTPUT-HASH.npz), frames are baked
-in chunks, and a re-run skips what is finished (see docs/pipelines.md)."""
+"fps", "frames", "mapping", "twist", "stretch"; outputs inside its folder unless
+--outputs-anywhere). In-process by default, a local cluster of --workers N
+processes, or an existing cluster at --scheduler ADDRESS. Each output is named from
+a hash of its inputs (OUTPUT-HASH.npz), frames are baked in chunks, and a re-run
+skips what is finished and sound, rebakes what is damaged and removes what a killed
+run left (see docs/pipelines.md)."""
 EPILOG = f"""examples:
   {EXAMPLE}
   stbs animate character.glb --motion 131_01.bvh --frames 0:600:2 -o run.npz
@@ -80,6 +82,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     g.add_argument("--scheduler", metavar="ADDRESS", help="an existing Dask cluster")
     g.add_argument("--chunk", type=int, default=64, metavar="FRAMES",
                    help="frames per task (default: %(default)s)")
+    g.add_argument("--outputs-anywhere", action="store_true",
+                   help="allow outputs outside the manifest's folder")
     add_character_options(p)
 
 
@@ -129,7 +133,7 @@ def run(args: argparse.Namespace) -> int:
         from ..bake.batch import run_manifest
 
         report = run_manifest(args.manifest, workers=args.workers, scheduler=args.scheduler,
-                              chunk=args.chunk)
+                              chunk=args.chunk, outputs_anywhere=args.outputs_anywhere)
         print(report.summary())
         return 0
     missing = [k for k, v in (("RIG", args.rig), ("--motion", args.motion),
