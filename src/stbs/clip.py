@@ -26,7 +26,7 @@ from . import transforms as tf
 from .pose import Pose, fk_arrays, local_arrays
 from .skeleton import Skeleton
 
-__all__ = ["Clip", "INTERPOLATIONS", "CHANNEL_INTERPOLATIONS", "MAX_SAMPLES"]
+__all__ = ["Clip", "INTERPOLATIONS", "CHANNEL_INTERPOLATIONS", "MAX_SAMPLES", "MAX_TIME"]
 
 #: Ways to go from one key to the next (the whole clip).
 INTERPOLATIONS = ("linear", "step")
@@ -34,18 +34,26 @@ INTERPOLATIONS = ("linear", "step")
 CHANNEL_INTERPOLATIONS = ("linear", "step", "cubic")
 #: Most poses :meth:`Clip.sample` makes (a guard against a huge fps or a long clip).
 MAX_SAMPLES = 100_000
+#: Largest magnitude of a key time, in seconds (about 11.6 days).
+MAX_TIME = 1e6
 
 # A time within this many frames of the grid counts as on it (k / fps in floating point).
 _GRID_TOL = 1e-9
 _MODE = {m: k for k, m in enumerate(CHANNEL_INTERPOLATIONS)}
 
 
-def _real(name: str, x, *, positive: bool = False) -> float:
+def _real(name: str, x, *, positive: bool = False, bound: float | None = None) -> float:
     if isinstance(x, bool) or not isinstance(x, (int, float, np.integer, np.floating)):
         raise TypeError(f"{name} must be a real number, got {type(x).__name__} {x!r}")
-    v = float(x)
+    try:
+        v = float(x)
+    except OverflowError:       # a Python int beyond the float range
+        raise ValueError(f"{name} must be finite, got an integer of about "
+                         f"{int(x.bit_length() * 0.30103) + 1} digits") from None
     if not math.isfinite(v):
         raise ValueError(f"{name} must be finite, got {v}")
+    if bound is not None and abs(v) > bound:
+        raise ValueError(f"{name} must lie within ±{bound:g}, got {v:.6g}")
     if positive and v <= 0:
         raise ValueError(f"{name} must be > 0, got {v:g}")
     return v
@@ -97,9 +105,9 @@ class Clip:
     Parameters
     ----------
     keys : iterable of (float, Pose)
-        At least one ``(time, pose)`` pair; times in seconds, finite and distinct
-        (they are sorted); every pose of an equal skeleton (same joints, bones and
-        names).
+        At least one ``(time, pose)`` pair; times in seconds, finite, of magnitude at
+        most :data:`MAX_TIME` and distinct (they are sorted); every pose of an equal
+        skeleton (same joints, bones and names).
     fps : float, keyword-only
         Frames per second of :meth:`sample` by default (> 0); default 30.
     interpolation : {"linear", "step"}, keyword-only
@@ -168,7 +176,7 @@ class Clip:
                 raise TypeError(f"keys[{k}] must be a (time, Pose) pair, got "
                                 f"{type(key).__name__}")
             t, pose = key
-            t = _real(f"keys[{k}] time", t)
+            t = _real(f"keys[{k}] time", t, bound=MAX_TIME)
             if not isinstance(pose, Pose):
                 raise TypeError(f"keys[{k}] pose must be a stbs.Pose, got "
                                 f"{type(pose).__name__}")
@@ -206,7 +214,7 @@ class Clip:
         ----------
         sk : Skeleton
         times : (k,) float
-            Key times in seconds, increasing.
+            Key times in seconds, increasing, of magnitude at most :data:`MAX_TIME`.
         rotations : (k, b, 4) or (k, b, d, d) float, optional
             Local rotations (see :meth:`stbs.Pose.local`) as unit quaternions
             ``(w, x, y, z)`` (2D: about z) or matrices; identity by default. The keys of
@@ -239,6 +247,9 @@ class Clip:
         k = times.size
         if k == 0:
             raise ValueError("times must hold at least one key time, got none")
+        if np.abs(times).max() > MAX_TIME:
+            raise ValueError(f"times must lie within ±{MAX_TIME:g} s, got "
+                             f"{times[np.argmax(np.abs(times))]:.6g}")
         if np.any(np.diff(times) <= 0):
             i = int(np.flatnonzero(np.diff(times) <= 0)[0])
             raise ValueError(f"times must increase, got {times[i]:g} then {times[i + 1]:g}")
@@ -386,7 +397,9 @@ class Clip:
         else:
             i = np.clip(np.searchsorted(T, t, side="right") - 1, 0, K - 2)
             dt = T[i + 1] - T[i]
-            s = np.clip((t - T[i]) / dt, 0.0, 1.0)
+            # far outside a very short piece the ratio may overflow: it is clipped to 1
+            with np.errstate(over="ignore"):
+                s = np.clip((t - T[i]) / dt, 0.0, 1.0)
             # on a key up to rounding (a grid k / fps against keys at k * dt): that key
             s = np.where(s <= 1e-9, 0.0, np.where(s >= 1 - 1e-9, 1.0, s))
         j = np.minimum(i + 1, K - 1)

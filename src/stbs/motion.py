@@ -21,6 +21,9 @@ from . import _checks
 
 __all__ = ["Motion"]
 
+# Joint-frames whose rotations are checked at once (bounds the check's temporaries).
+_CHECK_BLOCK = 1 << 18
+
 
 class Motion:
     """Per-frame local rotations and translations of a joint hierarchy.
@@ -88,8 +91,16 @@ class Motion:
         f = R.shape[0]
         if f < 1:
             raise ValueError("rotations must hold at least one frame, got 0")
-        err = np.abs(np.einsum("fjik,fjil->fjkl", R, R) - np.eye(3)).max()
-        if err > 1e-6 or (np.linalg.det(R) < 0).any():
+        # checked a slice of frames at a time: the temporaries stay small however long
+        # the motion is
+        err, flipped = 0.0, False
+        step = max(1, _CHECK_BLOCK // max(j, 1))
+        for a in range(0, f, step):
+            Ra = R[a:a + step]
+            err = max(err, float(np.abs(np.einsum("fjik,fjil->fjkl", Ra, Ra) - np.eye(3)).max(
+                initial=0.0)))
+            flipped = flipped or bool((np.linalg.det(Ra) < 0).any())
+        if err > 1e-6 or flipped:
             raise ValueError(f"rotations must be proper rotations (R^T R = I, det 1), off by "
                              f"{err:.3g}")
         if translations is None:
@@ -257,15 +268,14 @@ class Motion:
             if self.parents[k] >= 0:
                 size[self.parents[k]] += size[k] + 1
         P = np.full(len(BE), -1, dtype=np.int64)
-        first: dict[int, int] = {}
+        at_root: dict[int, list[int]] = {}      # a root's bones, in bone order
         for i, p in enumerate(drive):
             q = int(owner[p])                   # the joint whose offset placed p
             if q in bone_to:
                 P[i] = bone_to[q]
             else:                               # a root's bones: one is the root bone
-                first.setdefault(q, -1)
-        for q in first:
-            at = [i for i in range(len(BE)) if P[i] < 0 and owner[drive[i]] == q]
+                at_root.setdefault(q, []).append(i)
+        for at in at_root.values():
             main = max(at, key=lambda i: (size[end_a[i]], -i))
             for i in at:
                 if i != main:

@@ -149,14 +149,15 @@ def test_missing_file(tmp_path, sk3):
 def test_malformed_json_names_file_and_line(tmp_path, sk3):
     p = tmp_path / "bad.json"
     p.write_text('{"stretch": {"0": 1.5},\n "rotate": }\n')
-    with pytest.raises(ValueError, match=r"bad\.json, line 2.*not valid JSON"):
+    with pytest.raises(ValueError, match=r"bad\.json, line 2.*not valid pose JSON"):
         read_pose(p, sk3)
 
 
 def test_nan_literal_in_file(tmp_path, sk3):
     p = tmp_path / "nan.json"
     p.write_text('{"stretch": {"0": NaN}}')
-    with pytest.raises(ValueError, match=r"nan\.json: \"stretch\" bone '0': expected a finite"):
+    with pytest.raises(ValueError, match=r"nan\.json: expected pose JSON with finite numbers, "
+                                        r"found NaN"):
         read_pose(p, sk3)
 
 

@@ -37,6 +37,24 @@ What this reader accepts, as the files found in the wild have it:
 - LF, CRLF and CR line ends, mixed in one file; tabs or spaces; keywords in any case;
   a ``Frame Time`` written ``.0083333``; frame lines that wrap (the values of the
   MOTION block are read as one stream and must number ``Frames`` × channels).
+
+What it refuses, with one :class:`~stbs.io.FormatError` naming the file, the line, what
+was expected and what was found, before allocating anything the file's content does
+not justify:
+
+- more than :data:`MAX_JOINTS` joints (end sites included), a joint name longer than
+  :data:`MAX_NAME` characters, a repeated name, a second ``OFFSET`` or ``CHANNELS``
+  line in one joint; hierarchies of any depth are read without recursion;
+- ``Frames`` that is not a whole number from 1 to :data:`MAX_FRAMES` (``max_frames=``
+  overrides it), or frames × joints above :data:`MAX_JOINT_FRAMES` (the size of the
+  per-frame rotations; ``max_joint_frames=`` overrides it);
+- a ``Frame Time`` that is not a number of seconds from :data:`MIN_FRAME_TIME` to
+  :data:`MAX_FRAME_TIME`;
+- a MOTION block whose values do not number ``Frames`` × channels, or, when no joint
+  has a channel, that has fewer lines than ``Frames`` (one, empty, per frame);
+- an OFFSET or channel value that is not a number, NaN, infinite, or larger in
+  magnitude than :data:`MAX_VALUE` (centimetres, metres or degrees: far beyond any
+  capture).
 """
 
 from __future__ import annotations
@@ -50,10 +68,36 @@ from ..motion import Motion
 from ._parse import input_path, quote
 from .errors import FormatError
 
-__all__ = ["read_bvh"]
+__all__ = ["read_bvh", "MAX_FRAMES", "MAX_JOINTS", "MAX_JOINT_FRAMES", "MAX_VALUE",
+           "MIN_FRAME_TIME", "MAX_FRAME_TIME", "MAX_NAME"]
+
+#: Most frames :func:`read_bvh` reads unless told otherwise (``max_frames=``): 2.3 hours
+#: at 120 fps.
+MAX_FRAMES = 1_000_000
+#: Most joints, end sites included, in one file.
+MAX_JOINTS = 10_000
+#: Most frames × joints unless told otherwise (``max_joint_frames=``): the per-frame
+#: rotations and translations take 96 bytes each (about 1 GB at this limit; 100 joints
+#: over 100 000 frames).
+MAX_JOINT_FRAMES = 10_000_000
+#: Largest magnitude of an OFFSET or channel value (a position or an angle in degrees).
+MAX_VALUE = 1e6
+#: Shortest and longest ``Frame Time`` in seconds.
+MIN_FRAME_TIME = 1e-6
+MAX_FRAME_TIME = 3600.0
+#: Longest joint name, in characters.
+MAX_NAME = 256
 
 _AXES = {"x": 0, "y": 1, "z": 2}
 _CHANNEL = re.compile(r"([xyz])(position|rotation)\Z", re.IGNORECASE)
+_NUMBER = re.compile(r"[+-]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[eE][+-]?[0-9]+)?\Z")
+_TOKEN = re.compile(r"\S+")
+_BLANK_LINES = re.compile(r"(?:[^\S\n]*\n)*")
+# The MOTION block is counted and converted in pieces of about this many characters, so
+# that no list of a whole file's numbers is ever built.
+_CHUNK = 1 << 20
+# Python's whitespace (what str.split splits at) among the 256 latin-1 characters.
+_SPACE = np.array([chr(c).isspace() for c in range(256)])
 
 
 def _axis_rotation(axis: int, deg: np.ndarray) -> np.ndarray:
@@ -71,31 +115,50 @@ def _axis_rotation(axis: int, deg: np.ndarray) -> np.ndarray:
 
 
 class _Tokens:
-    """Whitespace tokens of the HIERARCHY part with their 1-based line numbers."""
+    """The whitespace tokens of the HIERARCHY part with their 1-based line numbers, read
+    one at a time (never held as a list), up to a line that starts with ``MOTION``."""
 
-    def __init__(self, p, lines: list[str]):
+    def __init__(self, p, text: str):
         self.p = p
-        self.items: list[tuple[str, int]] = []
-        self.motion_line = None
-        for no, line in enumerate(lines, start=1):
-            words = line.split()
-            if words and words[0].upper() == "MOTION":
-                self.motion_line = no
-                break
-            self.items.extend((w, no) for w in words)
-        self.i = 0
-        self.last_line = len(lines)
+        self.text = text
+        self.n_lines = text.count("\n") + (1 if text and not text.endswith("\n") else 0)
+        self.motion_line: int | None = None
+        self.motion_end = len(text)     # where the line after MOTION starts
+        self._it = _TOKEN.finditer(text)
+        self._pos = 0
+        self._line = 1
+        self._prev_line = 0
+        self._next: tuple[str, int] | None = None
+        self._advance()
+
+    def _advance(self) -> None:
+        self._next = None
+        if self.motion_line is not None:
+            return
+        m = next(self._it, None)
+        if m is None:
+            return
+        self._line += self.text.count("\n", self._pos, m.start())
+        self._pos = m.start()
+        w = m.group()
+        if self._line > self._prev_line and w.upper() == "MOTION":
+            self.motion_line = self._line
+            nl = self.text.find("\n", m.end())
+            self.motion_end = len(self.text) if nl < 0 else nl + 1
+            return
+        self._prev_line = self._line
+        self._next = (w, self._line)
 
     def peek(self) -> tuple[str, int] | None:
-        return self.items[self.i] if self.i < len(self.items) else None
+        return self._next
 
     def take(self, expected: str) -> tuple[str, int]:
-        t = self.peek()
+        t = self._next
         if t is None:
-            line = self.motion_line or self.last_line
+            line = self.motion_line or self.n_lines
             found = "'MOTION'" if self.motion_line else "end of file"
             raise FormatError(self.p, expected, found, line=line)
-        self.i += 1
+        self._advance()
         return t
 
     def word(self, want: str) -> int:
@@ -106,109 +169,259 @@ class _Tokens:
 
     def number(self, what: str) -> float:
         w, no = self.take(what)
-        try:
-            x = float(w)
-        except ValueError:
-            raise FormatError(self.p, what, quote(w), line=no) from None
-        if not np.isfinite(x):
-            raise FormatError(self.p, f"{what} (finite)", quote(w), line=no)
+        if _NUMBER.match(w) is None:
+            found = quote(w)
+            if w.lower().lstrip("+-") in ("nan", "inf", "infinity"):
+                found += " (not finite)"
+            raise FormatError(self.p, what, found, line=no)
+        x = float(w)
+        if not abs(x) <= MAX_VALUE:
+            raise FormatError(self.p, f"{what} of magnitude at most {MAX_VALUE:g}", quote(w),
+                              line=no)
         return x
 
 
+class _Joint:
+    """An open ``{ ... }`` block of the hierarchy while it is read."""
+    __slots__ = ("k", "is_end", "line", "offset", "channels")
+
+    def __init__(self, k: int, is_end: bool, line: int):
+        self.k, self.is_end, self.line = k, is_end, line
+        self.offset = self.channels = False
+
+
 def _parse_hierarchy(p, tok: _Tokens):
+    """The joints of the HIERARCHY part, read with a stack of open blocks (never by
+    recursion, so that a hierarchy of any depth reads)."""
     names: list[str] = []
     parents: list[int] = []
     offsets: list[list[float]] = []
     channels: list[list[tuple[str, int]]] = []    # (kind, axis) per channel
     end_site: list[bool] = []
+    taken: set[str] = set()
+    stack: list[_Joint] = []
 
-    def block(name: str, parent: int, is_end: bool, line: int) -> None:
-        k = len(names)
-        if name in names:
+    def open_block(name: str, parent: int, is_end: bool, line: int) -> None:
+        if len(names) >= MAX_JOINTS:
+            raise FormatError(p, f"at most {MAX_JOINTS} joints (end sites included)",
+                              f"joint {len(names) + 1}, {quote(name)}", line=line)
+        if len(name) > MAX_NAME:
+            raise FormatError(p, f"a joint name of at most {MAX_NAME} characters",
+                              f"one of {len(name)}: {quote(name)}", line=line)
+        if name in taken:
             raise FormatError(p, "a joint name not used before", quote(name), line=line)
+        taken.add(name)
+        stack.append(_Joint(len(names), is_end, line))
         names.append(name)
         parents.append(parent)
         end_site.append(is_end)
         channels.append([])
         offsets.append([0.0, 0.0, 0.0])
         tok.word("{")
-        seen_offset = False
-        while True:
-            w, no = tok.take("'OFFSET', 'CHANNELS', 'JOINT', 'End Site' or '}'")
-            key = w.upper()
-            if key == "}":
-                break
-            if key == "OFFSET":
-                offsets[k] = [tok.number(f"an OFFSET value of {name!r}") for _ in range(3)]
-                seen_offset = True
-            elif key == "CHANNELS" and not is_end:
-                cw, cno = tok.take(f"the channel count of {name!r}")
-                try:
-                    count = int(cw)
-                except ValueError:
-                    raise FormatError(p, f"the channel count of {name!r} (an integer)",
-                                      quote(cw), line=cno) from None
-                if not 0 <= count <= 6:
-                    raise FormatError(p, f"0 to 6 channels for {name!r}", quote(cw), line=cno)
-                for _ in range(count):
-                    c, cl = tok.take(f"{count} channel names for {name!r}")
-                    m = _CHANNEL.match(c)
-                    if m is None:
-                        raise FormatError(p, f"a channel name (Xposition ... Zrotation) for "
-                                             f"{name!r}, {count} in all", quote(c), line=cl)
-                    ch = (m.group(2).lower(), _AXES[m.group(1).lower()])
-                    if ch in channels[k]:
-                        raise FormatError(p, f"each channel of {name!r} once", quote(c), line=cl)
-                    channels[k].append(ch)
-            elif key == "JOINT" and not is_end:
-                child, cno = tok.take("a joint name")
-                block(child, k, False, cno)
-            elif key == "END" and not is_end:
-                tok.word("Site")
-                block(f"{name}_end", k, True, no)
-            else:
-                where = "an End Site" if is_end else f"joint {name!r}"
-                raise FormatError(p, f"'OFFSET'{'' if is_end else ', CHANNELS, JOINT, End Site'}"
-                                     f" or '}}' in {where}", quote(w), line=no)
-        if not seen_offset:
-            raise FormatError(p, f"an OFFSET line in {'the End Site of ' if is_end else ''}"
-                                 f"{names[parent] if is_end else name!r}", "none", line=line)
+
+    def read_channels(k: int, name: str) -> None:
+        cw, cno = tok.take(f"the channel count of {name!r}")
+        if not re.fullmatch(r"[0-9]{1,2}", cw) or int(cw) > 6:
+            raise FormatError(p, f"0 to 6 channels for {name!r}", quote(cw), line=cno)
+        count = int(cw)
+        for _ in range(count):
+            c, cl = tok.take(f"{count} channel names for {name!r}")
+            m = _CHANNEL.match(c)
+            if m is None:
+                raise FormatError(p, f"a channel name (Xposition ... Zrotation) for "
+                                     f"{name!r}, {count} in all", quote(c), line=cl)
+            ch = (m.group(2).lower(), _AXES[m.group(1).lower()])
+            if ch in channels[k]:
+                raise FormatError(p, f"each channel of {name!r} once", quote(c), line=cl)
+            channels[k].append(ch)
 
     t = tok.peek()
     if t is None or t[0].upper() != "HIERARCHY":
         raise FormatError(p, "'HIERARCHY' first", quote(t[0]) if t else "an empty file",
                           line=t[1] if t else 1)
     tok.take("HIERARCHY")
-    while tok.peek() is not None:
-        w, no = tok.take("'ROOT'")
-        if w.upper() != "ROOT":
-            raise FormatError(p, "'ROOT' (or 'MOTION' after the hierarchy)", quote(w), line=no)
-        name, nno = tok.take("a root name")
-        block(name, -1, False, nno)
+    while True:
+        if not stack:
+            if tok.peek() is None:
+                break
+            w, no = tok.take("'ROOT'")
+            if w.upper() != "ROOT":
+                raise FormatError(p, "'ROOT' (or 'MOTION' after the hierarchy)", quote(w),
+                                  line=no)
+            name, nno = tok.take("a root name")
+            open_block(name, -1, False, nno)
+            continue
+        top = stack[-1]
+        k, is_end = top.k, top.is_end
+        name = names[k]
+        w, no = tok.take("'OFFSET', 'CHANNELS', 'JOINT', 'End Site' or '}'")
+        key = w.upper()
+        if key == "}":
+            if not top.offset:
+                owner = f"the End Site of {names[parents[k]]!r}" if is_end else repr(name)
+                raise FormatError(p, f"an OFFSET line in {owner}", "none", line=top.line)
+            stack.pop()
+        elif key == "OFFSET":
+            if top.offset:
+                raise FormatError(p, f"one OFFSET line in {name!r}", "a second one", line=no)
+            offsets[k] = [tok.number(f"an OFFSET value of {name!r}") for _ in range(3)]
+            top.offset = True
+        elif key == "CHANNELS" and not is_end:
+            if top.channels:
+                raise FormatError(p, f"one CHANNELS line in {name!r}", "a second one", line=no)
+            read_channels(k, name)
+            top.channels = True
+        elif key == "JOINT" and not is_end:
+            child, cno = tok.take("a joint name")
+            open_block(child, k, False, cno)
+        elif key == "END" and not is_end:
+            tok.word("Site")
+            open_block(f"{name}_end", k, True, no)
+        else:
+            where = "an End Site" if is_end else f"joint {name!r}"
+            raise FormatError(p, f"'OFFSET'{'' if is_end else ', CHANNELS, JOINT, End Site'}"
+                                 f" or '}}' in {where}", quote(w), line=no)
     if not names:
         raise FormatError(p, "a ROOT joint after 'HIERARCHY'", "none",
-                          line=tok.motion_line or tok.last_line)
+                          line=tok.motion_line or tok.n_lines)
     return names, parents, offsets, channels, end_site
 
 
-def _header_value(p, lines: list[str], i: int, key: str) -> str:
-    """The text after ``key`` (e.g. 'Frames:') on line ``i`` (0-based)."""
-    if i >= len(lines):
-        raise FormatError(p, f"a line '{key} ...'", "end of file", line=len(lines))
-    m = re.match(r"\s*" + r"\s*".join(map(re.escape, key.split())) + r"\s*(.*)$", lines[i],
+def _header(p, text: str, pos: int, line: int, key: str) -> tuple[str, int]:
+    """The text after ``key`` (e.g. 'Frames:') on the line starting at ``pos`` (line
+    number ``line``), and where the next line starts."""
+    if pos >= len(text):
+        raise FormatError(p, f"a line '{key} ...'", "end of file", line=max(line - 1, 1))
+    nl = text.find("\n", pos)
+    end = len(text) if nl < 0 else nl
+    s = text[pos:end]
+    m = re.match(r"\s*" + r"\s*".join(map(re.escape, key.split())) + r"\s*(.*)$", s,
                  re.IGNORECASE)
     if m is None:
-        raise FormatError(p, f"a line '{key} ...'", quote(lines[i]), line=i + 1)
-    return m.group(1).strip()
+        raise FormatError(p, f"a line '{key} ...'", quote(s), line=line)
+    return m.group(1).strip(), end + 1
 
 
-def read_bvh(path: str | os.PathLike) -> Motion:
-    """Read a BVH motion capture file (see the module docs for the quirks accepted).
+def _chunks(text: str, pos: int):
+    """(start, end) of consecutive pieces of ``text[pos:]`` of about ``_CHUNK``
+    characters, each ending at a line end (or, in an over-long line, at whitespace), so
+    that no number is cut."""
+    n = len(text)
+    while pos < n:
+        end = pos + _CHUNK
+        if end >= n:
+            yield pos, n
+            return
+        cut = text.find("\n", end, end + _CHUNK)
+        if cut < 0:
+            m = re.compile(r"\s").search(text, end)
+            cut = n - 1 if m is None else m.start()
+        yield pos, cut + 1
+        pos = cut + 1
+
+
+def _line_counts(raw: bytes) -> np.ndarray:
+    """Numbers (whitespace-separated words) on each line of ``raw``; the last entry is
+    the text after the last line end (empty when ``raw`` ends with one)."""
+    a = np.frombuffer(raw, dtype=np.uint8)
+    nl = a == 10
+    if a.size == 0:
+        return np.zeros(1, dtype=np.int64)
+    ws = _SPACE[a]
+    starts = ~ws & np.concatenate([[True], ws[:-1]])
+    line = np.cumsum(nl) - nl
+    return np.bincount(line[starts], minlength=int(nl.sum()) + 1)
+
+
+def _motion_values(p, text: str, raw: bytes, pos: int, first_line: int, n_frames: int,
+                   n_ch: int) -> np.ndarray:
+    """The (n_frames, n_ch) values of the MOTION block starting at ``pos`` (line
+    ``first_line``): counted first, piece by piece, then converted into one array."""
+    want = n_frames * n_ch
+    pieces = []             # (start, end, first line, numbers)
+    total = 0
+    bad_line = None         # the first line of neither 0 nor n_ch numbers
+    bad_count = 0
+    line = first_line
+    last_line = first_line - 1
+    for s, e in _chunks(text, pos):
+        counts = _line_counts(raw[s:e])
+        full = counts if not text.endswith("\n", s, e) else counts[:-1]
+        if bad_line is None:
+            bad = np.flatnonzero((full != n_ch) & (full != 0))
+            if bad.size:
+                bad_line, bad_count = line + int(bad[0]), int(full[bad[0]])
+        m = int(counts.sum())
+        pieces.append((s, e, line, m))
+        total += m
+        last_line = line + full.size - 1
+        line += full.size
+    n_body = last_line - first_line + 1
+    if total != want:
+        why = [f"a frame line of {bad_count} values"] if bad_line is not None else []
+        if total < want:
+            why.insert(0, "a truncated MOTION block")
+        found = f"{total} numbers" + (f" ({' or '.join(why)})" if why else "")
+        raise FormatError(p, f"{n_frames} frames of {n_ch} values ({want} numbers; "
+                             f"'Frames: {n_frames}')", found,
+                          line=bad_line if bad_line is not None else max(last_line, 1))
+    if n_ch == 0 and n_body < n_frames:
+        lines = f"{n_frames} frame line{'s' if n_frames > 1 else ''}"
+        raise FormatError(p, f"{lines} ('Frames: {n_frames}'; an empty line a frame, as no "
+                             f"joint has a channel)", f"{n_body or 'none'}",
+                          line=max(last_line, first_line - 1))
+    data = np.empty(want, dtype=np.float64)
+    at = 0
+    for s, e, line, m in pieces:
+        if not m:
+            continue
+        words = text[s:e].split()
+        try:
+            v = np.array(words, dtype=np.float64)
+        except ValueError:
+            v = None
+        ok = None if v is None else np.abs(v) <= MAX_VALUE
+        if v is None or not ok.all():
+            k = next(i for i, w in enumerate(words) if not _finite_value(w)) if v is None \
+                else int(np.flatnonzero(~ok)[0])
+            where = line + int(np.searchsorted(np.cumsum(_line_counts(raw[s:e])), k,
+                                               side="right"))
+            raise FormatError(p, f"a number in the MOTION block (finite, of magnitude at "
+                                 f"most {MAX_VALUE:g})", quote(words[k]), line=where)
+        data[at:at + m] = v
+        at += m
+    return data.reshape(n_frames, n_ch)
+
+
+def _finite_value(w: str) -> bool:
+    try:
+        return abs(float(w)) <= MAX_VALUE
+    except ValueError:
+        return False
+
+
+def _limit(name: str, value, default: int) -> int:
+    if value is None:
+        return default
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
+        raise ValueError(f"{name} must be a whole number >= 1, got {value!r}")
+    return int(value)
+
+
+def read_bvh(path: str | os.PathLike, *, max_frames: int | None = None,
+             max_joint_frames: int | None = None) -> Motion:
+    """Read a BVH motion capture file (see the module docs for the quirks accepted and
+    the limits).
 
     Parameters
     ----------
     path : str or os.PathLike
         A ``.bvh`` file.
+    max_frames : int, optional
+        Most frames to accept; default :data:`MAX_FRAMES` (1 000 000).
+    max_joint_frames : int, optional
+        Most frames × joints (end sites included) to accept; default
+        :data:`MAX_JOINT_FRAMES` (10 000 000, about 1 GB of per-frame transforms).
 
     Returns
     -------
@@ -226,15 +439,19 @@ def read_bvh(path: str | os.PathLike) -> Motion:
         ``path`` does not exist.
     FormatError
         A malformed hierarchy (unknown keyword, missing brace or OFFSET, a bad
-        channel list, a repeated joint name), no MOTION part, a bad ``Frames`` or
-        ``Frame Time`` line, or a MOTION block whose values do not number
-        ``Frames`` × channels (a truncated file, a frame line with a wrong count);
-        the message names the file and the line.
+        channel list, a repeated joint name or OFFSET or CHANNELS line), more joints,
+        frames or frames × joints than the limits, no MOTION part, a bad ``Frames`` or
+        ``Frame Time`` line, a MOTION block whose values do not number ``Frames`` ×
+        channels (a truncated file, a frame line with a wrong count), a value that is
+        not a finite number of magnitude at most :data:`MAX_VALUE`; the message names
+        the file and the line.
+    ValueError
+        ``max_frames`` or ``max_joint_frames`` is not a whole number >= 1.
 
     Examples
     --------
     >>> import os, tempfile
-    >>> text = '''HIERARCHY
+    >>> text = \'\'\'HIERARCHY
     ... ROOT hip
     ... {
     ...   OFFSET 0 0 0
@@ -249,7 +466,7 @@ def read_bvh(path: str | os.PathLike) -> Motion:
     ... Frame Time: .5
     ... 0 0 0 0 0 0
     ... 1 0 0 90 0 0
-    ... '''
+    ... \'\'\'
     >>> path = os.path.join(tempfile.mkdtemp(), "tiny.bvh")
     >>> with open(path, "w") as f:
     ...     _ = f.write(text)
@@ -259,69 +476,46 @@ def read_bvh(path: str | os.PathLike) -> Motion:
     >>> m.positions()[1].round(6).tolist()   # frame 1: moved by x = 1, turned 90 deg about z
     [[1.0, 0.0, 0.0], [0.0, 0.0, 0.0]]
     """
+    max_frames = _limit("max_frames", max_frames, MAX_FRAMES)
+    max_joint_frames = _limit("max_joint_frames", max_joint_frames, MAX_JOINT_FRAMES)
     p = input_path(path, "BVH")
-    text = p.read_bytes().decode("latin-1")
-    lines = re.split(r"\r\n|\r|\n", text)
-    if lines and lines[-1] == "":
-        lines.pop()             # the end of the last line, not a line of its own
-    tok = _Tokens(p, lines)
+    # One line end (LF) for all three; latin-1 never fails to decode and keeps the byte
+    # offsets of ``raw`` and ``text`` equal.
+    raw = p.read_bytes().replace(b"\r\n", b"\n").replace(b"\r", b"\n")
+    text = raw.decode("latin-1")
+    tok = _Tokens(p, text)
     names, parents, offsets, channels, end_site = _parse_hierarchy(p, tok)
     if tok.motion_line is None:
         raise FormatError(p, "a 'MOTION' line after the hierarchy", "end of file",
-                          line=len(lines))
-    i = tok.motion_line                     # 0-based index of the line after MOTION
-    while i < len(lines) and not lines[i].strip():
-        i += 1
-    frames_text = _header_value(p, lines, i, "Frames:")
-    try:
-        n_frames = int(frames_text)
-    except ValueError:
-        n_frames = -1
-    if n_frames < 1:
-        raise FormatError(p, "'Frames: N' with N a whole number >= 1", quote(lines[i]),
-                          line=i + 1)
-    i += 1
-    dt_text = _header_value(p, lines, i, "Frame Time:")
-    try:
-        dt = float(dt_text)
-    except ValueError:
-        dt = float("nan")
-    if not (np.isfinite(dt) and dt > 0):
-        raise FormatError(p, "'Frame Time: SECONDS' with a positive number", quote(lines[i]),
-                          line=i + 1)
-    first = i + 1
-    n_ch = sum(len(c) for c in channels)
-    want = n_frames * n_ch
-    body = lines[first:]
-    counts = np.array([len(s.split()) for s in body], dtype=np.int64)
-    total = int(counts.sum())
-    if total != want:
-        # Point at the first line that breaks a one-frame-per-line layout, or the end.
-        bad = np.flatnonzero((counts != n_ch) & (counts != 0))
-        line = first + (int(bad[0]) + 1 if bad.size else len(body))
-        why = [f"a frame line of {counts[bad[0]]} values"] if bad.size else []
-        if total < want:
-            why.insert(0, "a truncated MOTION block")
-        found = f"{total} numbers" + (f" ({' or '.join(why)})" if why else "")
-        raise FormatError(p, f"{n_frames} frames of {n_ch} values ({want} numbers; "
-                             f"'Frames: {n_frames}')", found, line=line)
-    try:
-        data = np.array(" ".join(body).split(), dtype=np.float64)
-    except ValueError:
-        for k, s in enumerate(body):
-            for w in s.split():
-                try:
-                    float(w)
-                except ValueError:
-                    raise FormatError(p, "a number in the MOTION block", quote(w),
-                                      line=first + k + 1) from None
-        raise
-    if not np.isfinite(data).all():
-        k = int(np.flatnonzero(~np.isfinite(data))[0]) // max(n_ch, 1)
-        raise FormatError(p, "finite channel values", f"a non-finite value in frame {k}")
-    data = data.reshape(n_frames, n_ch)
-
+                          line=max(tok.n_lines, 1))
+    line = tok.motion_line + 1
+    pos = tok.motion_end
+    blank = _BLANK_LINES.match(text, pos)
+    line += text.count("\n", pos, blank.end())
+    pos = blank.end()
+    frames_text, nxt = _header(p, text, pos, line, "Frames:")
+    if not re.fullmatch(r"[0-9]{1,20}", frames_text) or int(frames_text) < 1:
+        raise FormatError(p, "'Frames: N' with N a whole number >= 1", quote(text[pos:nxt]),
+                          line=line)
+    n_frames = int(frames_text)
     j = len(names)
+    if n_frames > max_frames:
+        raise FormatError(p, f"at most {max_frames} frames (read_bvh's max_frames)",
+                          f"'Frames: {n_frames}'", line=line)
+    if n_frames * j > max_joint_frames:
+        raise FormatError(p, f"at most {max_joint_frames} frames × joints (read_bvh's "
+                             f"max_joint_frames)", f"{n_frames} frames × {j} joints",
+                          line=line)
+    pos, line = nxt, line + 1
+    dt_text, nxt = _header(p, text, pos, line, "Frame Time:")
+    dt = float(dt_text) if _NUMBER.match(dt_text) else float("nan")
+    if not MIN_FRAME_TIME <= dt <= MAX_FRAME_TIME:
+        raise FormatError(p, f"'Frame Time: SECONDS' with a number from {MIN_FRAME_TIME:g} "
+                             f"to {MAX_FRAME_TIME:g}", quote(text[pos:nxt]), line=line)
+    n_ch = sum(len(c) for c in channels)
+    data = _motion_values(p, text, raw, nxt, line + 1, n_frames, n_ch)
+    del raw, text
+
     O = np.array(offsets, dtype=np.float64)
     R = np.tile(np.eye(3), (n_frames, j, 1, 1))
     T = np.broadcast_to(O, (n_frames, j, 3)).copy()

@@ -7,41 +7,47 @@ A clip file is one JSON object::
               {"time": 1.5, "pose": {"stretch": {"neck": 1.6}}}]}
 
 ``keys``
-    A non-empty list of ``{"time": seconds, "pose": POSE}``; the times finite and
-    distinct (any order: they are sorted), each pose in either form of a pose file
+    A non-empty list of at most :data:`MAX_KEYS` (100 000) ``{"time": seconds, "pose":
+    POSE}``; the times finite, of magnitude at most :data:`stbs.clip.MAX_TIME` (1e6 s)
+    and distinct (any order: they are sorted), each pose in either form of a pose file
     (:mod:`stbs.io.pose`: the joints form or the forward-kinematics form, bones by
-    index or name, degrees unless the pose says ``"degrees": false``). The forms
-    may be mixed from key to key.
+    index or name, degrees unless the pose says ``"degrees": false``, numbers within
+    the pose files' limits). The forms may be mixed from key to key.
 ``fps`` (optional, default 30)
-    Frames per second of :meth:`stbs.Clip.sample`; a number > 0.
+    Frames per second of :meth:`stbs.Clip.sample`; a number > 0 and at most
+    :data:`MAX_FPS` (1000).
 ``interpolation`` (optional, default ``"linear"``)
     ``"linear"`` (:meth:`stbs.Pose.interpolate` between keys) or ``"step"`` (each
     key held until the next).
 
-Every other key is an error. Errors are :class:`ValueError` naming the file (or
-``clip`` for a dict), the key's index (``keys[2]``), what was expected and what
-was found; an invalid pose gives the pose reader's message behind
-``keys[2].pose``.
+Every other key is an error, and so is a key given twice in one object. A file is
+read as JSON of bounded size and nesting with finite numbers. Errors are one
+:class:`ValueError` naming the file (or ``clip`` for a dict), the key's index
+(``keys[2]``), what was expected and what was found; an invalid pose gives the pose
+reader's message behind ``keys[2].pose``.
 """
 
 from __future__ import annotations
 
 import json
-import math
 import os
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
 from .. import _checks
-from ..clip import INTERPOLATIONS, Clip
+from ..clip import INTERPOLATIONS, MAX_TIME, Clip
 from ..skeleton import Skeleton
-from .pose import POSE_FORMS, _load, _Reader, _show, pose_to_dict
+from .pose import POSE_FORMS, _key, _load, _Reader, _show, pose_to_dict
 
-__all__ = ["read_clip", "write_clip", "clip_to_dict", "CLIP_KEYS"]
+__all__ = ["read_clip", "write_clip", "clip_to_dict", "CLIP_KEYS", "MAX_KEYS", "MAX_FPS"]
 
 #: Keys of a clip object.
 CLIP_KEYS = ("fps", "interpolation", "keys")
+#: Most keys in a clip file.
+MAX_KEYS = 100_000
+#: Largest ``fps`` of a clip file.
+MAX_FPS = 1000.0
 
 
 def read_clip(path_or_dict: str | os.PathLike | Mapping[str, Any], sk: Skeleton) -> Clip:
@@ -73,21 +79,20 @@ def read_clip(path_or_dict: str | os.PathLike | Mapping[str, Any], sk: Skeleton)
     if isinstance(path_or_dict, Mapping):
         src, obj = "clip", path_or_dict
     elif isinstance(path_or_dict, (str, os.PathLike)):
-        p = Path(os.fspath(path_or_dict))
-        if not p.exists():
-            raise FileNotFoundError(2, "clip file not found", str(p))
-        if p.is_dir():
-            raise IsADirectoryError(21, "clip path is a folder, expected a file", str(p))
-        src, obj = _load(p)
+        src, obj = _load(Path(os.fspath(path_or_dict)), "clip")
     else:
         raise TypeError("path_or_dict must be a path or a dict, got "
                         f"{type(path_or_dict).__name__}")
     return _clip(src, obj, sk)
 
 
-def _number(src: str, where: str, x: Any) -> float:
-    if isinstance(x, bool) or not isinstance(x, (int, float)) or not math.isfinite(x):
-        raise ValueError(f"{src}: {where}: expected a finite number, found {_show(x)}")
+def _number(src: str, where: str, x: Any, low: float, high: float, what: str) -> float:
+    """A number from ``low`` to ``high`` (``low`` excluded when it is 0)."""
+    if isinstance(x, bool) or not isinstance(x, (int, float)):
+        raise ValueError(f"{src}: {where}: expected {what}, found {_show(x)}")
+    # compared before float(): an integer of any length, without OverflowError
+    if not (low < x if low == 0 else low <= x) or not x <= high:
+        raise ValueError(f"{src}: {where}: expected {what}, found {_show(x)}")
     return float(x)
 
 
@@ -96,16 +101,14 @@ def _clip(src: str, obj: Any, sk: Skeleton) -> Clip:
         raise ValueError(f'{src}: expected a JSON object {{"fps": 30, "interpolation": '
                          f'"linear", "keys": [{{"time": t, "pose": {{...}}}}, ...]}}, found '
                          f"{_show(obj)}")
-    unknown = sorted(set(obj) - set(CLIP_KEYS))
+    unknown = sorted(set(obj) - set(CLIP_KEYS), key=str)
     if unknown:
-        raise ValueError(f"{src}: key {unknown[0]!r}: unknown key; a clip has "
+        raise ValueError(f"{src}: key {_key(unknown[0])}: unknown key; a clip has "
                          f"{', '.join(CLIP_KEYS)}")
-    fps = _number(src, '"fps"', obj.get("fps", 30))
-    if fps <= 0:
-        raise ValueError(f'{src}: "fps": expected a number > 0 (frames a second), found '
-                         f"{_show(obj['fps'])}")
+    fps = _number(src, '"fps"', obj.get("fps", 30), 0.0, MAX_FPS,
+                  f"a finite number > 0 and <= {MAX_FPS:g} (frames a second)")
     interp = obj.get("interpolation", "linear")
-    if interp not in INTERPOLATIONS:
+    if not isinstance(interp, str) or interp not in INTERPOLATIONS:
         raise ValueError(f'{src}: "interpolation": expected one of '
                          f"{', '.join(json.dumps(s) for s in INTERPOLATIONS)}, found "
                          f"{_show(interp)}")
@@ -113,9 +116,12 @@ def _clip(src: str, obj: Any, sk: Skeleton) -> Clip:
         raise ValueError(f'{src}: missing "keys": expected a list of {{"time": t, "pose": '
                          f"{{...}}}}")
     keys = obj["keys"]
-    if not isinstance(keys, list) or not keys:
+    if not isinstance(keys, (list, tuple)) or not keys:
         raise ValueError(f'{src}: "keys": expected a non-empty list of {{"time": t, "pose": '
                          f"{{...}}}}, found {_show(keys)}")
+    if len(keys) > MAX_KEYS:
+        raise ValueError(f'{src}: "keys": expected at most {MAX_KEYS} keys, found '
+                         f"{len(keys)}")
     pairs = []
     seen: dict[float, int] = {}
     for k, key in enumerate(keys):
@@ -123,14 +129,15 @@ def _clip(src: str, obj: Any, sk: Skeleton) -> Clip:
         if not isinstance(key, Mapping):
             raise ValueError(f'{src}: {where}: expected an object {{"time": t, "pose": '
                              f"{{...}}}}, found {_show(key)}")
-        extra = sorted(set(key) - {"time", "pose"})
+        extra = sorted(set(key) - {"time", "pose"}, key=str)
         if extra:
-            raise ValueError(f"{src}: {where}: unexpected key {extra[0]!r}; a key has time "
-                             "and pose")
+            raise ValueError(f"{src}: {where}: unexpected key {_key(extra[0])}; a key has "
+                             "time and pose")
         for need in ("time", "pose"):
             if need not in key:
                 raise ValueError(f'{src}: {where}: missing "{need}"')
-        t = _number(src, f'{where}."time"', key["time"])
+        t = _number(src, f'{where}."time"', key["time"], -MAX_TIME, MAX_TIME,
+                    f"a finite number (seconds) of magnitude at most {MAX_TIME:g}")
         if t in seen:
             raise ValueError(f"{src}: {where}: time {t:g} is also the time of "
                              f"keys[{seen[t]}]; key times must be distinct")

@@ -50,11 +50,19 @@ parent's rotation and twist there. Every pose has this form exactly
     frame its parent carries it in (world for a root), as an animated joint
     translation does. Default 0.
 
-Errors are :class:`ValueError` naming the file (or ``pose`` for a dict), the
-key and the bone, what was expected and what was found: unknown keys, a
-mixture of both forms, a bone that does not exist or is listed twice, wrong
-vector lengths, non-numbers, NaN or infinity, a stretch <= 0, a zero axis, a
-non-zero twist on a 2D skeleton.
+Limits: every number (coordinate, offset, angle, twist, axis component) has a
+magnitude of at most :data:`MAX_VALUE` (1e6; twists past 360 degrees are kept), and a
+stretch lies from :data:`MIN_STRETCH` to :data:`MAX_STRETCH` (1e-6 to 1e6), given or
+(joints form) implied by the posed joints. A file is read as JSON of bounded size and
+nesting with finite numbers (:func:`stbs.io.read_json`'s rules), each key at most once
+in an object.
+
+Errors are one :class:`ValueError` naming the file (or ``pose`` for a dict), the
+key and the bone, what was expected and what was found: a file that is not such
+JSON, unknown keys, a key given twice, a mixture of both forms, a bone that does not
+exist or is listed twice, wrong vector lengths, non-numbers (``true`` and strings
+included), NaN or infinity, numbers beyond the limits, a stretch <= 0, a zero axis, a
+zero-length posed bone, a non-zero twist on a 2D skeleton.
 """
 
 from __future__ import annotations
@@ -72,13 +80,21 @@ from .. import _checks
 from .. import transforms as tf
 from ..pose import Pose
 from ..skeleton import Skeleton
+from ._parse import JSON_MAX_BYTES, JsonError, input_path, load_json
 
-__all__ = ["read_pose", "write_pose", "pose_to_dict", "POSE_FORMS", "JOINTS_KEYS", "FK_KEYS"]
+__all__ = ["read_pose", "write_pose", "pose_to_dict", "POSE_FORMS", "JOINTS_KEYS", "FK_KEYS",
+           "MAX_VALUE", "MIN_STRETCH", "MAX_STRETCH"]
 
 #: Keys of the joints form.
 JOINTS_KEYS = ("joints", "twist", "degrees")
 #: Keys of the forward-kinematics form.
 FK_KEYS = ("rotate", "stretch", "twist", "translate", "degrees")
+#: Largest magnitude of a number in a pose: a coordinate, an offset, an angle (in the
+#: pose's unit), a twist or an axis component.
+MAX_VALUE = 1e6
+#: Smallest and largest stretch (posed length / rest length).
+MIN_STRETCH = 1e-6
+MAX_STRETCH = 1e6
 
 
 def read_pose(path_or_dict: str | os.PathLike | Mapping[str, Any], sk: Skeleton) -> Pose:
@@ -117,31 +133,81 @@ def read_pose(path_or_dict: str | os.PathLike | Mapping[str, Any], sk: Skeleton)
     return _Reader(src, sk).pose(obj)
 
 
-def _load(p: Path) -> tuple[str, Any]:
-    if not p.exists():
-        raise FileNotFoundError(2, "pose file not found", str(p))
-    if p.is_dir():
-        raise IsADirectoryError(21, "pose path is a folder, expected a file", str(p))
+def _load(p: Path, what: str = "pose") -> tuple[str, Any]:
+    """A JSON file read safely (:func:`load_json`: bounded size and nesting, finite
+    numbers, integers of bounded length), each key at most once in an object."""
+    p = input_path(p, what)
     src = str(p)
+    size = p.stat().st_size
+    if size > JSON_MAX_BYTES:
+        raise JsonError(f"{src}: expected a {what} file of at most {JSON_MAX_BYTES >> 20} MiB, "
+                        f"found {size >> 20} MiB")
+    data = p.read_bytes()
+    obj = load_json(data, src, what=f"{what} JSON")
+    # Parsed again (the checks above make that safe) only to refuse a repeated key,
+    # which json keeps silently (the last one wins).
     try:
-        text = p.read_text(encoding="utf-8")
-    except UnicodeDecodeError as exc:
-        raise ValueError(f"{src}: expected UTF-8 JSON text, found an undecodable byte at "
-                         f"offset {exc.start}") from None
-    try:
-        return src, json.loads(text)
-    except json.JSONDecodeError as exc:
-        raise ValueError(f"{src}, line {exc.lineno}, column {exc.colno}: not valid JSON "
-                         f"({exc.msg})") from None
+        json.loads(data.decode("utf-8"), object_pairs_hook=_unique_keys)
+    except _Repeated as exc:
+        raise ValueError(f"{src}: expected each key once in a JSON object, found "
+                         f"{_show(exc.args[0])} twice") from None
+    return src, obj
 
 
-def _show(x: Any) -> str:
-    """A short JSON rendering of a value for error messages."""
-    try:
-        s = json.dumps(x)
-    except (TypeError, ValueError):
-        s = repr(x)
-    return s if len(s) <= 60 else s[:57] + "..."
+class _Repeated(Exception):
+    pass
+
+
+def _unique_keys(pairs: list[tuple[str, Any]]) -> dict:
+    seen: set[str] = set()
+    for k, _ in pairs:
+        if k in seen:
+            raise _Repeated(k)
+        seen.add(k)
+    return dict(pairs)
+
+
+def _show(x: Any, budget: int = 60) -> str:
+    """A short JSON-like rendering of a value for error messages: never longer than
+    about ``budget`` characters, whatever the value's size or nesting."""
+    out = _render(x, budget, 3)
+    return out if len(out) <= budget else out[:budget - 3] + "..."
+
+
+def _key(x: Any) -> str:
+    """A key or bone name for messages: Python's quoting, cut to 60 characters."""
+    if isinstance(x, str):
+        return repr(x if len(x) <= 60 else x[:57] + "...")
+    return _show(x)
+
+
+def _render(x: Any, budget: int, depth: int) -> str:
+    if x is None or isinstance(x, bool):
+        return json.dumps(x)
+    if isinstance(x, int):
+        if abs(x) < 10 ** 20:
+            return str(x)
+        return f"<an integer of about {int(x.bit_length() * 0.30103) + 1} digits>"
+    if isinstance(x, float):
+        return json.dumps(x)
+    if isinstance(x, str):
+        return json.dumps(x[:budget])
+    if isinstance(x, (list, tuple, Mapping)):
+        mapping = isinstance(x, Mapping)
+        if depth <= 0:
+            return "{...}" if mapping else "[...]"
+        parts, used = [], 2
+        for item in (x.items() if mapping else x):
+            if used > budget:
+                parts.append("...")
+                break
+            part = (f"{_render(item[0], budget, 0)}: {_render(item[1], budget, depth - 1)}"
+                    if mapping else _render(item, budget, depth - 1))
+            parts.append(part)
+            used += len(part) + 2
+        body = ", ".join(parts)
+        return "{" + body + "}" if mapping else "[" + body + "]"
+    return f"<{type(x).__name__}>"
 
 
 class _Reader:
@@ -156,20 +222,38 @@ class _Reader:
         return ValueError(f"{self.src}: {where}: {msg}")
 
     # ------------------------------------------------------------------ scalars
-    def number(self, where: str, x: Any) -> float:
+    def number(self, where: str, x: Any, *, bound: float = MAX_VALUE) -> float:
         # bool is an int in Python but never a number in a pose file.
         if isinstance(x, bool) or not isinstance(x, (int, float)):
             raise self.fail(where, f"expected a number, found {_show(x)}")
-        v = float(x)
-        if not math.isfinite(v):
-            raise self.fail(where, f"expected a finite number, found {_show(x)}")
-        return v
+        # compared before float(): an integer of any length, without OverflowError
+        if not abs(x) <= bound:
+            what = "a finite number" if isinstance(x, float) and not math.isfinite(x) else \
+                f"a number of magnitude at most {bound:g}"
+            raise self.fail(where, f"expected {what}, found {_show(x)}")
+        return float(x)
 
     def vector(self, where: str, x: Any, d: int, what: str) -> np.ndarray:
-        if not isinstance(x, list) or len(x) != d:
-            got = f"{len(x)} values" if isinstance(x, list) else _show(x)
+        if not isinstance(x, (list, tuple)) or len(x) != d:
+            got = f"{len(x)} values" if isinstance(x, (list, tuple)) else _show(x)
             raise self.fail(where, f"expected {what} (a list of {d} numbers), found {got}")
         return np.array([self.number(f"{where}[{k}]", v) for k, v in enumerate(x)])
+
+    def bone(self, key: str, name: Any) -> int:
+        """The bone ``name`` names (a name, an index, or a string of digits)."""
+        sk = self.sk
+        if isinstance(name, str) and name in sk.names:
+            return sk.names.index(name)
+        i = None
+        if isinstance(name, int) and not isinstance(name, bool):
+            i = name
+        elif isinstance(name, str) and name.isascii() and name.isdigit() and len(name) <= 20:
+            i = int(name)
+        if i is not None and 0 <= i < sk.n_bones:
+            return i
+        names = ", ".join(_key(n) for n in sk.names[:8]) + (", ..." if sk.n_bones > 8 else "")
+        raise self.fail(f'"{key}"', f"bone {_key(name)} does not exist; bones are "
+                                    f"0..{sk.n_bones - 1} or names {names}")
 
     def table(self, key: str, x: Any) -> dict[int, tuple[str, Any]]:
         """``{bone: value}`` -> ``{bone index: (label, value)}``; each bone at most once."""
@@ -178,14 +262,11 @@ class _Reader:
         out: dict[int, tuple[str, Any]] = {}
         given: dict[int, Any] = {}
         for name, value in x.items():
-            try:
-                i = self.sk.bone_index(name)
-            except ValueError as exc:
-                raise self.fail(f'"{key}"', str(exc)) from None
-            label = f'"{key}" bone {name!r}'
+            i = self.bone(key, name)
+            label = f'"{key}" bone {_key(name)}'
             if i in out:
-                raise self.fail(label, f"bone {i} ({self.sk.names[i]!r}) is given twice "
-                                       f"(also as {given[i]!r})")
+                raise self.fail(label, f"bone {i} ({_key(self.sk.names[i])}) is given twice "
+                                       f"(also as {_key(given[i])})")
             out[i] = (label, value)
             given[i] = name
         return out
@@ -213,15 +294,15 @@ class _Reader:
             raise self.fail('"degrees"', f"expected true or false, found {_show(deg)}")
         self.scale = math.pi / 180.0 if deg else 1.0
         if "joints" in keys:
-            unknown = sorted(keys - set(JOINTS_KEYS))
+            unknown = sorted(keys - set(JOINTS_KEYS), key=str)
             if unknown:
-                raise self.fail(f"key {unknown[0]!r}", "not allowed with \"joints\"; the "
+                raise self.fail(f"key {_key(unknown[0])}", "not allowed with \"joints\"; the "
                                 f"joints form takes {', '.join(JOINTS_KEYS)} (the "
                                 f"forward-kinematics form takes {', '.join(FK_KEYS)})")
             return self.joints_form(obj)
-        unknown = sorted(keys - set(FK_KEYS))
+        unknown = sorted(keys - set(FK_KEYS), key=str)
         if unknown:
-            raise self.fail(f"key {unknown[0]!r}", "unknown key; expected "
+            raise self.fail(f"key {_key(unknown[0])}", "unknown key; expected "
                             f"{', '.join(FK_KEYS)} (forward kinematics) or "
                             f"{', '.join(JOINTS_KEYS)} (posed joints)")
         return self.fk_form(obj)
@@ -240,9 +321,16 @@ class _Reader:
         for i, (_, s, e) in self.twist_pairs(obj.get("twist", {})).items():
             theta[i] = (s, e)
         try:
-            return Pose.from_joints(sk, C, twist=theta)
+            pose = Pose.from_joints(sk, C, twist=theta)
         except ValueError as exc:
             raise self.fail('"joints"', str(exc)) from None
+        bad = np.flatnonzero(~((pose.stretch >= MIN_STRETCH) & (pose.stretch <= MAX_STRETCH)))
+        if bad.size:
+            i = int(bad[0])
+            raise self.fail('"joints"', f"bone {i} ({_key(sk.names[i])}): expected a posed "
+                                        f"length from {MIN_STRETCH:g} to {MAX_STRETCH:g} times "
+                                        f"its rest length, found {pose.stretch[i]:.6g} times")
+        return pose
 
     def fk_form(self, obj: Mapping) -> Pose:
         sk = self.sk
@@ -256,6 +344,10 @@ class _Reader:
             if sigma[i] <= 0:
                 raise self.fail(label, f"stretch must be > 0 (posed length / rest length), "
                                        f"found {_show(v)}")
+            if not MIN_STRETCH <= sigma[i] <= MAX_STRETCH:
+                raise self.fail(label, f"expected a stretch from {MIN_STRETCH:g} to "
+                                       f"{MAX_STRETCH:g} (posed length / rest length), found "
+                                       f"{_show(v)}")
         theta = np.zeros((b, 2))
         for i, (_, s, e) in self.twist_pairs(obj.get("twist", {})).items():
             theta[i] = (s, e)
@@ -275,10 +367,10 @@ class _Reader:
         want = '{"axis": [x, y, z], "angle": a}' if d == 3 else '{"angle": a}'
         if not isinstance(spec, Mapping):
             raise self.fail(label, f"expected {want}, found {_show(spec)}")
-        extra = sorted(set(spec) - ({"axis", "angle"} if d == 3 else {"angle"}))
+        extra = sorted(set(spec) - ({"axis", "angle"} if d == 3 else {"angle"}), key=str)
         if extra:
             why = " (a 2D rotation has no axis)" if d == 2 and extra == ["axis"] else ""
-            raise self.fail(label, f"unexpected key {extra[0]!r}{why}; expected {want}")
+            raise self.fail(label, f"unexpected key {_key(extra[0])}{why}; expected {want}")
         if "angle" not in spec:
             raise self.fail(label, f'missing "angle"; expected {want}')
         angle = self.number(f'{label} "angle"', spec["angle"]) * self.scale
@@ -289,7 +381,8 @@ class _Reader:
         axis = self.vector(f'{label} "axis"', spec["axis"], 3, "a 3D axis")
         if not np.any(axis):
             raise self.fail(f'{label} "axis"', "expected a non-zero axis, found [0, 0, 0]")
-        return tf.axis_angle_to_matrix(axis, angle)
+        # scaled to a largest component of 1 first: a tiny axis (1e-200) has a norm
+        return tf.axis_angle_to_matrix(axis / np.abs(axis).max(), angle)
 
 
 # ----------------------------------------------------------------------------- writing
