@@ -427,3 +427,18 @@ def test_manifest_json_and_fields_are_checked(tmp_path, inputs, capsys):
         assert main(["animate", "--manifest", str(bad)]) == 2
         err = capsys.readouterr().err.strip().splitlines()
         assert len(err) == 1 and match in err[0], err
+
+
+def test_a_job_of_too_many_frames_is_refused_before_any_work(tmp_path, inputs, capsys):
+    m = _one_job(tmp_path, inputs, fps=1000, frames=None, max_frames=50)   # 1001 frames
+    with pytest.raises(ValueError, match=r"job 0: 1001 frames to bake.*at most 50"):
+        run_manifest(m)
+    assert main(["animate", "--manifest", str(m)]) == 2
+    assert len(capsys.readouterr().err.strip().splitlines()) == 1
+    assert _names(tmp_path) == []
+    job = {**json.loads(m.read_text())[0], "max_frames": 2000, "fps": 100}     # 101 frames
+    m.write_text(json.dumps([job]))
+    assert run_manifest(m).frames == 101
+    m.write_text(json.dumps([{**job, "max_frames": 0}]))
+    with pytest.raises(ValueError, match=r"job 0: 'max_frames' must be an integer"):
+        read_manifest(m)

@@ -2,7 +2,8 @@
 
 A manifest is a JSON list of jobs ``{"rig", "motion", "output", "method"}`` (paths
 relative to the manifest; optional ``"fps"``, ``"frames"``, ``"mapping"``, ``"twist"``,
-``"stretch"``, ``"animation"``). The same task graph runs on every scheduler:
+``"stretch"``, ``"animation"``, ``"max_frames"``). The same task graph runs on every
+scheduler:
 
 - **What is shipped per task**: paths, content hashes, options and a list of frame
   times, never arrays. Each worker process loads a rig once (keyed by its path and the
@@ -16,6 +17,10 @@ relative to the manifest; optional ``"fps"``, ``"frames"``, ``"mapping"``, ``"tw
   digits) covers the rig's and the motion's bytes, the mapping's, the method, the
   options and the stbs version. Equal inputs give equal names, so nothing is baked
   twice.
+- **Bounded**: a job bakes at most :func:`stbs.bake.core.frame_limit` frames (its
+  frames × vertices within :data:`stbs.bake.core.MAX_BAKE_BYTES`, the job's
+  ``"max_frames"`` when given): more is an error before any work, since its last task
+  holds all its frames at once.
 - **Done means sound**: a re-run skips an output only when it is a regular file that
   checks out (``.npz``: a readable zip whose ``U`` has the job's frames × vertices and
   whose ``times`` are the job's; ``.glb``: the header's magic, version and length
@@ -56,13 +61,13 @@ import numpy as np
 from .. import __version__
 from ..io import atomic_open
 from ..io._parse import load_json, read_json
-from .core import _npz_bytes, frame_times, load_motion, output_kind, write_frames
+from .core import _npz_bytes, frame_limit, frame_times, load_motion, output_kind, write_frames
 
 __all__ = ["Job", "read_manifest", "run_manifest", "BatchReport", "job_hash", "plan",
            "local_cluster"]
 
 _KEYS = {"rig", "motion", "output", "method", "fps", "frames", "mapping", "twist",
-         "stretch", "animation"}
+         "stretch", "animation", "max_frames"}
 _METHODS = ("lbs", "dqs", "stbs-lbs", "stbs-dqs")
 _CHOICES = {"method": _METHODS, "twist": ("spread", "joint"), "stretch": ("keep", "match")}
 _INPUTS = ("rig", "motion", "mapping")
@@ -87,6 +92,7 @@ class Job:
     twist: str = "spread"
     stretch: str = "keep"
     animation: str | None = None
+    max_frames: int | None = None
     where: str = field(default="", compare=False)
 
     @property
@@ -205,6 +211,12 @@ def _fields(j: dict, where: str) -> dict[str, Any]:
         if isinstance(fps, bool) or not isinstance(fps, (int, float)) or not fps > 0:
             raise ValueError(f"{where}: 'fps' must be a number above 0, got {fps!r}")
         out["fps"] = float(fps)
+    top = j.get("max_frames")
+    if top is not None:
+        if isinstance(top, bool) or not isinstance(top, int) or top < 1:
+            raise ValueError(f"{where}: 'max_frames' must be an integer of 1 or more, got "
+                             f"{top!r}")
+        out["max_frames"] = top
     for key, what in (("frames", "a string A:B:STEP"), ("mapping", "a path"),
                       ("animation", "an animation's name")):
         if j.get(key) is not None:
@@ -256,6 +268,7 @@ def _digests(job: Job, cache: dict | None = None) -> tuple[str, str, str | None]
 
 
 def _key(job: Job, digests: tuple[str, str, str | None]) -> str:
+    # max_frames bounds the work, it does not change the frames: not part of the name
     rd, md, mapd = digests
     parts = {"stbs": __version__, "rig": rd, "motion": md, "mapping": mapd,
              "method": job.method, "fps": job.fps, "frames": job.frames, "twist": job.twist,
@@ -511,6 +524,13 @@ def _timeline(job: Job, rig):
     return Clip(keys, fps=m.fps)
 
 
+def _times(job: Job, rig) -> np.ndarray:
+    """The job's frame times; more than :func:`frame_limit` allows is a ValueError."""
+    n = len(rig.V)
+    return frame_times(_timeline(job, rig), fps=job.fps, frames=job.frames,
+                       limit=frame_limit(n, job.max_frames), n_vertices=n)
+
+
 def plan(jobs: list[Job], chunk: int, *, report: BatchReport | None = None):
     """The task graph (dask.delayed) of the jobs not finished yet, and the outputs done.
 
@@ -548,7 +568,7 @@ def plan(jobs: list[Job], chunk: int, *, report: BatchReport | None = None):
             times = None
             if mode is not None:
                 if final.suffix.lower() == ".npz":
-                    times = frame_times(_timeline(job, rig), fps=job.fps, frames=job.frames)
+                    times = _times(job, rig)
                     sound = _npz_sound(final, times, rig.V.shape)
                 else:
                     sound = _gltf_sound(final)
@@ -558,7 +578,7 @@ def plan(jobs: list[Job], chunk: int, *, report: BatchReport | None = None):
                     continue
                 report.rebaked.append(str(final))
             if times is None:
-                times = frame_times(_timeline(job, rig), fps=job.fps, frames=job.frames)
+                times = _times(job, rig)
             # a part never replaces an input: inputs named as work files are refused,
             # and an atomic write replaces a name, never the file a link leads to
             parts = [_part(job, key, c) for c in range(-(-len(times) // chunk))]
