@@ -142,36 +142,110 @@ def _chest(body: Body, tree: Tree) -> int:
     return tops[0] if tops and all(t == tops[0] for t in tops) else -1
 
 
+#: A mapping file larger than this is refused unread (a real one is a few kilobytes).
+MAPPING_MAX_BYTES = 16 * 2**20
+
+
+class _Number(str):
+    """A number of a mapping file, kept as its text (never converted: a mapping has no
+    numbers, and a 401-digit one must not cost anything)."""
+
+
+class _Repeated(Exception):
+    pass
+
+
+def _pairs(pairs: list[tuple[str, Any]]) -> dict:
+    seen: set[str] = set()
+    for k, _ in pairs:
+        if k in seen:
+            raise _Repeated(k)
+        seen.add(k)
+    return dict(pairs)
+
+
+def _short(x: Any) -> str:
+    """A name or value for a one-line message, at most about 60 characters."""
+    if isinstance(x, _Number):
+        return x if len(x) <= 40 else x[:37] + "..."
+    if isinstance(x, str):
+        return repr(x if len(x) <= 60 else x[:57] + "...")
+    if x is None or isinstance(x, (bool, int, float)) and abs(x) < 1e20:
+        return repr(x)
+    if isinstance(x, Mapping):
+        return "an object"
+    return "a list" if isinstance(x, (list, tuple)) else f"a {type(x).__name__}"
+
+
+def _read_mapping(path: str | os.PathLike) -> tuple[str, Any]:
+    """A mapping file's JSON, read safely: its size bounded, nesting refused (a mapping
+    is one flat object; the parser's depth guard is caught), numbers never converted,
+    ``NaN``/``Infinity`` and repeated keys refused. Errors name the file."""
+    where = os.fspath(path)
+    try:
+        with open(where, "rb") as f:
+            size = os.fstat(f.fileno()).st_size
+            if size > MAPPING_MAX_BYTES:
+                raise ValueError(f"{where}: expected a mapping file of at most "
+                                 f"{MAPPING_MAX_BYTES >> 20} MiB, found {size >> 20} MiB")
+            data = f.read()
+    except FileNotFoundError:
+        raise FileNotFoundError(f"mapping file not found: {where!r}") from None
+    try:
+        text = data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise ValueError(f"{where}: expected UTF-8 mapping JSON {{rig bone: capture joint}}, "
+                         f"found an undecodable byte at offset {exc.start}") from None
+    try:
+        return where, json.loads(text, object_pairs_hook=_pairs, parse_int=_Number,
+                                 parse_float=_Number, parse_constant=_Number)
+    except json.JSONDecodeError as exc:
+        raise ValueError(f"{where}, line {exc.lineno}, column {exc.colno}: mapping file not "
+                         f"JSON ({exc.msg})") from None
+    except _Repeated as exc:
+        raise ValueError(f"{where}: expected each rig bone once in the mapping, found "
+                         f"{_short(exc.args[0])} twice") from None
+    except RecursionError:
+        raise ValueError(f"{where}: expected a flat JSON object {{rig bone: capture joint}}, "
+                         f"found values nested too deeply") from None
+
+
 def _given_mapping(mapping: Any, sk: Skeleton, motion: Motion) -> np.ndarray:
     if isinstance(mapping, (str, os.PathLike)):
-        where = os.fspath(mapping)
-        try:
-            with open(mapping, encoding="utf-8") as f:
-                mapping = json.load(f)
-        except FileNotFoundError:
-            raise FileNotFoundError(f"mapping file not found: {where!r}") from None
-        except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-            raise ValueError(f"mapping {where!r}: not JSON ({exc})") from None
+        where, mapping = _read_mapping(mapping)
+        src = f"{where}: mapping"
         if not isinstance(mapping, Mapping):
-            raise ValueError(f"mapping {where!r}: expected a JSON object {{rig bone: capture "
-                             f"joint}}, got a JSON {type(mapping).__name__}")
-    if not isinstance(mapping, Mapping):
+            raise ValueError(f"{src}: expected a JSON object {{rig bone: capture joint}}, got "
+                             f"a JSON {type(mapping).__name__}")
+    elif isinstance(mapping, Mapping):
+        src = "mapping"
+    else:
         raise TypeError(f"mapping must be a dict {{rig bone: motion joint}}, a JSON file of "
                         f"one, or None, got {type(mapping).__name__}")
+    bones = {n: i for i, n in enumerate(sk.names)}
+    joints = {n: k for k, n in enumerate(motion.names) if not motion.end_site[k]}
     out = np.full(sk.n_bones, -1, dtype=np.int64)
+    given: dict[int, Any] = {}
     for bone, joint in mapping.items():
-        try:
-            i = sk.bone_index(int(bone) if isinstance(bone, str) and bone.isdigit() else bone)
-        except (KeyError, IndexError, ValueError):
-            raise ValueError(f"mapping: the rig has no bone {bone!r}; its bones are "
-                             f"{_listed(sk.names)}") from None
+        i = bones.get(bone) if isinstance(bone, str) else None
+        if i is None:
+            if isinstance(bone, str) and bone.isascii() and bone.isdigit() and len(bone) <= 20:
+                i = int(bone)
+            elif isinstance(bone, (int, np.integer)) and not isinstance(bone, bool):
+                i = int(bone)
+            if i is None or not 0 <= i < sk.n_bones:
+                raise ValueError(f"{src}: the rig has no bone {_short(bone)}; its bones are "
+                                 f"{_listed(sk.names)}")
+        if i in given:
+            raise ValueError(f"{src}: bone {i} ({_short(sk.names[i])}) is given twice (as "
+                             f"{_short(given[i])} and {_short(bone)})")
+        given[i] = bone
         if joint is None:
             continue
-        if not isinstance(joint, str) or joint not in motion.names \
-                or motion.end_site[motion.names.index(joint)]:
-            raise ValueError(f"mapping: the motion has no joint {joint!r} (for bone {bone!r}); "
-                             f"its joints are {_listed(_joint_names(motion))}")
-        out[i] = motion.names.index(joint)
+        if not isinstance(joint, str) or isinstance(joint, _Number) or joint not in joints:
+            raise ValueError(f"{src}: the motion has no joint {_short(joint)} (for bone "
+                             f"{_short(bone)}); its joints are {_listed(_joint_names(motion))}")
+        out[i] = joints[joint]
     return out
 
 
@@ -181,7 +255,8 @@ def _joint_names(motion: Motion) -> list[str]:
 
 
 def _listed(names, most: int = 40) -> str:
-    names = list(names)
+    # names cut to 60 characters: a message stays one readable line
+    names = [n if len(n) <= 60 else n[:57] + "..." for n in names]
     if len(names) <= most:
         return ", ".join(names)
     return ", ".join(names[:most]) + f", ... ({len(names)} in all)"
