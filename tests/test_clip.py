@@ -240,3 +240,24 @@ def test_from_local_step_and_cubic_channels():
         stbs.Clip.from_local(sk, times, rotations=q, rotation_interpolation="cubic")
     with pytest.raises(ValueError, match="increase"):
         stbs.Clip.from_local(sk, [0.0, 0.0, 1.0], rotations=q)
+
+
+def test_key_times_are_bounded_and_extreme_keys_never_overflow():
+    # times at ±1.7e308 once made sample_times and local() overflow; a time is now within
+    # ±MAX_TIME, checked before any conversion (a 401-digit integer included)
+    sk = _bone_2d()
+    rest = stbs.Pose.rest(sk)
+    for t, match in [(1.7e308, r"keys\[0\] time must lie within ±1e\+06, got 1.7e\+308"),
+                     (-2e6, r"within ±1e\+06"),
+                     (10**400, r"keys\[0\] time must be finite, got an integer of about 401")]:
+        with pytest.raises(ValueError, match=match):
+            stbs.Clip([(t, rest)])
+    with pytest.raises(ValueError, match=r"times must lie within ±1e\+06 s, got -1.7e\+308"):
+        stbs.Clip.from_local(sk, [-1.7e308, 0.0])
+    edge = stbs.Clip([(-stbs.clip.MAX_TIME, rest), (stbs.clip.MAX_TIME, rest)])
+    assert edge.duration == 2e6
+    # keys a denormal apart: far outside that piece the ratio overflows, quietly clipped
+    # (a RuntimeWarning is an error in this test suite)
+    tiny = stbs.Clip.from_local(sk, [0.0, 5e-324], rotations=[[[1, 0, 0, 0]], [[0, 0, 0, 1]]])
+    R = tiny.arrays(np.array([-1e6, 1.0, 1e6]))[0]
+    np.testing.assert_allclose(R[1:, 0], [[[-1, 0], [0, -1]]] * 2, atol=1e-12)
