@@ -9,6 +9,14 @@ animation included) without sending the clip again. :class:`ViewerServer` answer
 functions; they check the request, raise :class:`Refusal` (an HTTP status and one
 line) for a bad one, and leave the locking and the token and Host rules to the server.
 Clip objects a request sends are read by :func:`stbs.io.read_clip`.
+
+Each request's work is bounded before it is done, and a request over a bound is 413
+with a message naming the limit and what arrived: keys (:data:`MAX_KEYS`, and
+:data:`MAX_KEY_BONES` keys x bones: reading a key costs forward kinematics over every
+bone), sampled frames (:data:`MAX_FRAMES`; :data:`MAX_SAMPLES` frames x bones as JSON,
+:data:`MAX_FRAME_SAMPLES` as binary) and exported pixels (:data:`MAX_EXPORT_FRAMES`,
+:data:`MAX_EXPORT_PIXELS` a frame, :data:`MAX_EXPORT_TOTAL_PIXELS` in all, read from
+each PNG's header before any frame is decoded; frames are then decoded one at a time).
 """
 
 from __future__ import annotations
@@ -32,15 +40,29 @@ import numpy as np
 from .. import _optional
 from ..clip import Clip
 from ..io import atomic_open, clip_to_dict, read_clip
+from ..io._inputs import SameFileError, check_output
 from ..pose import Pose
 from ..skeleton import Skeleton
 
-__all__ = ["Refusal", "ClipStore", "MAX_FRAMES", "MAX_CLIPS", "MAX_EXPORT_FRAMES",
-           "MAX_EXPORT_PIXELS", "CLIP_NAME", "GIF_NAME", "CLIP_ID", "read_request_clip",
-           "summary", "frames", "sample", "clip_pose", "target_in", "save_clip", "export_gif"]
+__all__ = ["Refusal", "ClipStore", "MAX_FRAMES", "MAX_CLIPS", "MAX_KEYS", "MAX_KEY_BONES",
+           "MAX_SAMPLES", "MAX_FRAME_SAMPLES", "MAX_EXPORT_FRAMES", "MAX_EXPORT_PIXELS",
+           "MAX_EXPORT_TOTAL_PIXELS", "MIN_EXPORT_FPS", "CLIP_NAME", "GIF_NAME", "CLIP_ID",
+           "read_request_clip", "summary", "frames", "sample", "clip_pose", "target_in",
+           "same_file_message", "save_clip", "export_gif"]
 
 #: Most frames one request answers (``/api/clip/ID/frames``, ``/api/clip/sample``).
 MAX_FRAMES = 2000
+#: Most keys in a clip a request sends (``POST /api/clip``, ``/api/clip/sample``,
+#: ``/api/clip/pose``, ``/api/save-clip``).
+MAX_KEYS = 10_000
+#: Most keys x bones in a clip a request sends (each key is read with forward
+#: kinematics over every bone, posed or not).
+MAX_KEY_BONES = 100_000
+#: Most frames x bones ``/api/clip/sample`` answers (JSON).
+MAX_SAMPLES = 100_000
+#: Most frames x bones ``/api/clip/ID/frames`` answers (binary float64: at most
+#: 500,000 x 15 x 8 bytes = 60 MB for a 3D rig).
+MAX_FRAME_SAMPLES = 500_000
 #: Clips the page registered that the server keeps (the least recently used go first;
 #: the clip the server was started with is always kept).
 MAX_CLIPS = 16
@@ -48,8 +70,15 @@ MAX_CLIPS = 16
 CLIP_ID = re.compile(r"[0-9a-f]{16}\Z")
 #: Most frames ``/api/export`` takes.
 MAX_EXPORT_FRAMES = 600
+#: Lowest fps ``/api/export`` takes: a GIF frame lasts at most 100 s (its delay is 16 bits
+#: of 10 ms).
+MIN_EXPORT_FPS = 0.01
 #: Largest frame ``/api/export`` takes, in pixels (width x height).
 MAX_EXPORT_PIXELS = 2048 * 2048
+#: Most pixels ``/api/export`` takes over all its frames (frames x width x height, read
+#: from the PNG headers before any frame is decoded): 2**28, e.g. 600 frames of
+#: 640 x 360 or 129 of 1920 x 1080. The GIF writer holds every frame at a byte a pixel.
+MAX_EXPORT_TOTAL_PIXELS = 2**28
 #: A clip file name the client may give ``/api/save-clip``: a bare ``.json`` name.
 CLIP_NAME = re.compile(r"[A-Za-z0-9_][A-Za-z0-9_.-]{0,99}\.json\Z")
 #: A GIF file name the client may give ``/api/export``: a bare ``.gif`` name.
@@ -65,6 +94,10 @@ class Refusal(Exception):
         super().__init__(message)
         self.status = int(status)
         self.message = " ".join(str(message).split())
+
+
+def _one_line(exc: BaseException) -> str:
+    return " ".join(str(exc).split()) or type(exc).__name__
 
 
 def _show(x: Any) -> str:
@@ -97,6 +130,16 @@ def read_request_clip(obj: Any, sk: Skeleton) -> Clip:
     if not isinstance(obj, Mapping):
         raise Refusal(400, f'clip: expected a JSON object {{"fps", "interpolation", "keys"}} '
                            f"(a clip file), found {_show(obj)}")
+    keys = obj.get("keys")
+    if isinstance(keys, list):
+        k, b = len(keys), sk.n_bones
+        if k > MAX_KEYS:
+            raise Refusal(413, f'clip: "keys": {k} keys; the limit is {MAX_KEYS} keys a '
+                               "request")
+        if k * b > MAX_KEY_BONES:
+            raise Refusal(413, f'clip: "keys": {k} keys x {b} bones = {k * b} bone poses; the '
+                               f"limit is {MAX_KEY_BONES} a request (at most "
+                               f"{MAX_KEY_BONES // b} keys for this rig)")
     try:
         return read_clip(obj, sk)
     except (ValueError, TypeError) as exc:
@@ -116,21 +159,25 @@ def sample(obj: Any, sk: Skeleton) -> dict:
     if isinstance(obj, Mapping) and "times" in obj:
         obj = dict(obj)
         given = obj.pop("times")
-        if not isinstance(given, list) or not given or len(given) > MAX_FRAMES:
-            got = f"{len(given)} times" if isinstance(given, list) else _show(given)
+        if not isinstance(given, list) or not given:
             raise Refusal(400, f'"times": expected a list of 1 to {MAX_FRAMES} times in seconds, '
-                               f"found {got}")
+                               f"found {_show(given) if given != [] else 'an empty list'}")
+        if len(given) > MAX_FRAMES:
+            raise Refusal(413, f'"times": {len(given)} times; the limit is {MAX_FRAMES} a '
+                               "request")
+        _samples("times", len(given), sk.n_bones, MAX_SAMPLES)
         times = [_time(f'"times"[{k}]', t) for k, t in enumerate(given)]
         clip = read_request_clip(obj, sk)
     else:
         clip = read_request_clip(obj, sk)
         try:
-            grid = clip.sample_times()
-        except ValueError as exc:
-            raise Refusal(400, f"clip: {exc}") from None
-        if len(grid) > MAX_FRAMES:
-            raise Refusal(400, f"clip: {clip.duration:g} s at {clip.fps:g} fps is {len(grid)} "
-                               f"frames; at most {MAX_FRAMES} are sampled (lower the fps)")
+            grid = clip.sample_times(limit=MAX_FRAMES)
+        except ValueError:
+            raise Refusal(413, f"clip: {clip.duration:g} s at {clip.fps:g} fps is "
+                               f"{clip.duration * clip.fps + 1:.6g} frames; the limit is "
+                               f"{MAX_FRAMES} a request (lower the fps, or send "
+                               '"times")') from None
+        _samples("clip", len(grid), sk.n_bones, MAX_SAMPLES)
         times = grid.tolist()
     R, O, sigma, theta = clip.arrays(np.asarray(times, dtype=float))
     rows = [{"rotations": R[k].tolist(), "origins": O[k].tolist(),
@@ -139,6 +186,14 @@ def sample(obj: Any, sk: Skeleton) -> dict:
     return {"fps": clip.fps, "interpolation": clip.interpolation, "start": clip.start,
             "end": clip.end, "duration": clip.duration, "keys": clip.times.tolist(),
             "times": times, "frames": rows}
+
+
+def _samples(where: str, k: int, b: int, limit: int) -> None:
+    """Refuse (413) k frames of b bones beyond ``limit`` frames x bones."""
+    if k * b > limit:
+        raise Refusal(413, f"{where}: {k} frames x {b} bones = {k * b} samples; the limit is "
+                           f"{limit} a request (at most {max(1, limit // b)} frames for this "
+                           "rig)")
 
 
 class ClipStore:
@@ -219,7 +274,7 @@ def _times(query: str) -> np.ndarray:
                            "seconds, comma-separated)")
     parts = given[0].split(",")
     if len(parts) > MAX_FRAMES:
-        raise Refusal(400, f"t: {len(parts)} times; at most {MAX_FRAMES} a request")
+        raise Refusal(413, f"t: {len(parts)} times; at most {MAX_FRAMES} a request")
     out = np.empty(len(parts))
     for k, x in enumerate(parts):
         try:
@@ -241,6 +296,7 @@ def frames(clip: Clip, query: str) -> np.ndarray:
     ``sigma_i``, ``theta_a,i``, ``theta_b,i`` (radians).
     """
     t = _times(query)
+    _samples("t", len(t), clip.skeleton.n_bones, MAX_FRAME_SAMPLES)
     R, O, sigma, theta = clip.arrays(t)
     k, b, d = R.shape[0], R.shape[1], R.shape[2]
     return np.concatenate([R.reshape(k, b, d * d), O, sigma[..., None], theta], axis=-1)
@@ -277,12 +333,22 @@ def target_in(folder: Path, name: Any, *, default_stem: str, pattern: re.Pattern
         raise Refusal(400, f'"name": expected a bare file name ending in {suffix} (letters, '
                            f"digits, _ - and dots, no folder), got {json.dumps(name)[:80]}")
     target = folder / name
+    try:
+        check_output(target)
+    except SameFileError:
+        raise Refusal(409, same_file_message(name)) from None
     if os.path.islink(target) or (os.path.lexists(target) and not target.is_file()):
         raise Refusal(403, f"{name!r}: exists and is not a plain file; not replaced")
     if target.exists() and not overwrite:
         raise Refusal(409, f"{name!r} exists in {str(folder)!r}; send \"overwrite\": true to "
                            "replace it")
     return target
+
+
+def same_file_message(name: str) -> str:
+    """The refusal of a save over a file the viewer reads (its rig, motion, mapping)."""
+    return (f"{name!r} is a file this viewer reads (its rig, motion or mapping): never "
+            'written over, even with "overwrite": true; choose another name')
 
 
 def _overwrite(obj: Mapping) -> bool:
@@ -332,6 +398,8 @@ def save_clip(obj: Any, store: ClipStore, folder: Path | None, rig_name: str) ->
     try:
         with atomic_open(target, "w") as f:
             f.write(json.dumps(body, indent=1) + "\n")
+    except SameFileError:
+        raise Refusal(409, same_file_message(target.name)) from None
     except OSError as exc:
         raise Refusal(500, f"could not write {str(target)!r}: "
                            f"{exc.strerror or exc}") from None
@@ -385,58 +453,94 @@ def export_gif(obj: Any, folder: Path | None, rig_name: str) -> dict:
         raise Refusal(400, f'"format": expected "gif" (the only export format), got {_show(fmt)}')
     fps = obj["fps"]
     if isinstance(fps, bool) or not isinstance(fps, (int, float)) or not math.isfinite(fps) \
-            or not 0 < fps <= 100:
-        raise Refusal(400, f'"fps": expected a number in (0, 100] (a GIF delay is at least '
-                           f"10 ms), found {_show(fps)}")
+            or not MIN_EXPORT_FPS <= fps <= 100:
+        raise Refusal(400, f'"fps": expected a number in [{MIN_EXPORT_FPS:g}, 100] (a GIF frame '
+                           f"lasts 10 ms to 100 s), found {_show(fps)}")
     loop = obj.get("loop", True)
     if not isinstance(loop, bool):
         raise Refusal(400, f'"loop": expected true or false, got {_show(loop)}')
     overwrite = _overwrite(obj)
     frames = obj["frames"]
-    if not isinstance(frames, list) or not 1 <= len(frames) <= MAX_EXPORT_FRAMES:
-        got = f"{len(frames)} frames" if isinstance(frames, list) else _show(frames)
+    if not isinstance(frames, list) or not frames:
+        got = "an empty list" if frames == [] else _show(frames)
         raise Refusal(400, f'"frames": expected a list of 1 to {MAX_EXPORT_FRAMES} PNG images, '
                            f"found {got}")
+    if len(frames) > MAX_EXPORT_FRAMES:
+        raise Refusal(413, f'"frames": {len(frames)} frames; the limit is {MAX_EXPORT_FRAMES} '
+                           "frames an export (lower the fps)")
     pngs = [_png(f'"frames"[{k}]', x) for k, x in enumerate(frames)]
+    size = _export_size([_png_size(f'"frames"[{k}]', data) for k, data in enumerate(pngs)])
     folder = _folder(folder, "exports")
     advice = _optional.missing(["PIL"], "exporting a GIF")
     if advice:
         raise Refusal(501, advice)
-    from PIL import Image
-
-    images = []
-    size = None
-    for k, data in enumerate(pngs):
-        try:
-            im = Image.open(io.BytesIO(data))
-            if im.format != "PNG":
-                raise ValueError(f"a {im.format} image")
-            if im.width * im.height > MAX_EXPORT_PIXELS:
-                raise Refusal(400, f'"frames"[{k}]: {im.width} x {im.height} pixels; at most '
-                                   f"{MAX_EXPORT_PIXELS} pixels a frame")
-            im = im.convert("RGB")
-        except Refusal:
-            raise
-        except Exception as exc:    # Pillow raises many kinds for a broken image
-            raise Refusal(400, f'"frames"[{k}]: not a readable PNG image ({exc})') from None
-        if size is None:
-            size = im.size
-        elif im.size != size:
-            raise Refusal(400, f'"frames"[{k}]: {im.width} x {im.height} pixels; every frame '
-                               f"must have the size of frame 0 ({size[0]} x {size[1]})")
-        images.append(im)
     target = target_in(folder, obj.get("name"), default_stem=f"{rig_name}-clip",
                        pattern=GIF_NAME, suffix=".gif", overwrite=overwrite)
-    options = {"save_all": True, "append_images": images[1:],
+    # Decoded one at a time, as the GIF writer asks for them (it keeps each frame at a
+    # byte a pixel, which MAX_EXPORT_TOTAL_PIXELS bounds); a broken frame stops the
+    # write and the temporary file is removed.
+    first = _decode(0, pngs[0], size)
+    rest = (_decode(k, data, size) for k, data in enumerate(pngs[1:], start=1))
+    options = {"save_all": True, "append_images": rest,
                "duration": max(10, round(1000.0 / fps))}
     if loop:
         options["loop"] = 0          # 0: repeat for ever
     try:
         with atomic_open(target, "wb") as f:
-            images[0].save(f, format="GIF", **options)
+            first.save(f, format="GIF", **options)
+    except SameFileError:
+        raise Refusal(409, same_file_message(target.name)) from None
     except OSError as exc:
         raise Refusal(500, f"could not write {str(target)!r}: {exc.strerror or exc}") from None
+    from PIL import Image
+
     with Image.open(target) as back:
         count = int(getattr(back, "n_frames", 1))
     return {"path": str(target), "name": target.name, "frames": count, "width": size[0],
             "height": size[1], "fps": float(fps)}
+
+
+def _png_size(where: str, data: bytes) -> tuple[int, int]:
+    """(width, height) from a PNG's IHDR chunk, which must come first (PNG spec 5.6);
+    nothing is decoded."""
+    # signature (8 bytes), then the chunk: length 13 (4), "IHDR" (4), width, height (4
+    # each, big-endian), ...
+    if len(data) < 33 or data[8:16] != b"\0\0\0\x0dIHDR":
+        raise Refusal(400, f"{where}: not a readable PNG image (its first chunk is not the "
+                           f"13-byte IHDR header; found {len(data)} bytes)")
+    w, h = int.from_bytes(data[16:20], "big"), int.from_bytes(data[20:24], "big")
+    if not (w and h):
+        raise Refusal(400, f"{where}: not a readable PNG image ({w} x {h} pixels)")
+    if w * h > MAX_EXPORT_PIXELS:
+        raise Refusal(413, f"{where}: {w} x {h} = {w * h} pixels; the limit is "
+                           f"{MAX_EXPORT_PIXELS} pixels a frame")
+    return w, h
+
+
+def _export_size(sizes: list[tuple[int, int]]) -> tuple[int, int]:
+    """The one size of every frame, within MAX_EXPORT_TOTAL_PIXELS in all."""
+    w, h = sizes[0]
+    for k, (wk, hk) in enumerate(sizes):
+        if (wk, hk) != (w, h):
+            raise Refusal(400, f'"frames"[{k}]: {wk} x {hk} pixels; every frame must have the '
+                               f"size of frame 0 ({w} x {h})")
+    total = len(sizes) * w * h
+    if total > MAX_EXPORT_TOTAL_PIXELS:
+        raise Refusal(413, f'"frames": {len(sizes)} frames of {w} x {h} = {total} pixels; the '
+                           f"limit is {MAX_EXPORT_TOTAL_PIXELS} pixels an export (at most "
+                           f"{MAX_EXPORT_TOTAL_PIXELS // (w * h)} frames of this size)")
+    return w, h
+
+
+def _decode(k: int, data: bytes, size: tuple[int, int]):
+    """Frame k as an RGB image of ``size`` (400 for a PNG Pillow cannot read)."""
+    from PIL import Image
+
+    try:
+        with Image.open(io.BytesIO(data)) as im:
+            if im.format != "PNG" or im.size != size:
+                raise ValueError(f"a {im.format} image of {im.width} x {im.height} pixels")
+            return im.convert("RGB")
+    except Exception as exc:    # Pillow raises many kinds for a broken image
+        raise Refusal(400, f'"frames"[{k}]: not a readable PNG image ({_one_line(exc)})') \
+            from None

@@ -17,8 +17,17 @@ request goes through, in this order (docs/viewer.md has the full API):
    the header ``X-Stbs-Token`` (compared in constant time), else 403; a request that
    sends an ``Origin`` must come from this server's own origin, else 403. Only then
    is an unknown path 404, so nothing about the API is learnt without the token.
-5. **Bodies** are read only with a ``Content-Length`` (chunked bodies: 411) of at most
-   ``max_body`` bytes (else 413, without reading it).
+5. **Bodies** are read only with exactly one ``Content-Length`` (two, or one beside a
+   ``Transfer-Encoding``: 400; chunked bodies: 411) of at most ``max_body`` bytes (else
+   413, without reading it); a body that stops short (the connection idle for
+   ``_Handler.timeout`` seconds, or closed) is 400 and closes the connection. JSON
+   bodies are read by :func:`stbs.io._parse.load_json` (nesting, digits, finite numbers).
+   Every refusal is a JSON ``{"error": one line, "status": N}``; client input never
+   gets a 500 or prints on stderr.
+
+Connections: the listen queue holds :data:`REQUEST_QUEUE` connections and at most
+:data:`MAX_HANDLERS` are answered at once (a thread each); the rest wait in the queue.
+The limits on the work one request may ask for are those of :mod:`stbs.viewer.clips`.
 
 The clips the page plays are held by the server (:class:`stbs.viewer.clips.ClipStore`):
 the page registers a clip once per edit (``POST /api/clip``) and asks for its poses at
@@ -29,11 +38,15 @@ Writes (``/api/save-pose``, ``/api/save-clip``, ``/api/export``, ``/api/save-rig
 go to a temporary file then rename
 (:mod:`stbs.io`'s atomic writers), only into the folder and the file the server was
 given (``pose_folder``, ``rig_target``); the client names at most a bare ``.json``
-file name in that folder (a bare ``.gif`` name for an export).
+file name in that folder (a bare ``.gif`` name for an export). Every save runs inside
+:func:`stbs.io._inputs.tracking` with the files the server reads noted (its
+``rig_source`` and ``inputs``, plus those of a ``stbs view`` run): a save over one of
+them is 409, ``"overwrite"`` or not, and leaves it untouched.
 """
 
 from __future__ import annotations
 
+import contextlib
 import hmac
 import json
 import os
@@ -50,13 +63,15 @@ from urllib.parse import parse_qs
 import numpy as np
 
 from ..io import pose_to_dict, read_pose, write_pose, write_rig
+from ..io._inputs import SameFileError, note_input, tracking
+from ..io._parse import JsonError, load_json
 from ..pose import Pose
 from ..rig import Rig
 from . import clips
 from .payload import RigPayload
 
 __all__ = ["ViewerServer", "STATIC_DIR", "MAX_BODY", "HOST", "TOKEN_HEADER",
-           "POSE_NAME", "RIG_TARGETS", "static_path"]
+           "POSE_NAME", "RIG_TARGETS", "REQUEST_QUEUE", "MAX_HANDLERS", "static_path"]
 
 #: The only address the server listens on.
 HOST = "127.0.0.1"
@@ -64,6 +79,10 @@ HOST = "127.0.0.1"
 STATIC_DIR = Path(__file__).resolve().parent / "static"
 #: Largest request body accepted, in bytes (64 MiB).
 MAX_BODY = 64 * 1024 * 1024
+#: Connections the listen queue holds while every handler is busy.
+REQUEST_QUEUE = 256
+#: Connections answered at once, one thread each; more wait in the listen queue.
+MAX_HANDLERS = 128
 #: The header that may carry the token instead of the ``token=`` query parameter.
 TOKEN_HEADER = "X-Stbs-Token"
 #: A pose file name the client may give ``/api/save-pose``: a bare ``.json`` name.
@@ -118,6 +137,10 @@ def static_path(static_dir: str | os.PathLike, rel: str) -> Path | None:
     return p
 
 
+class _BodyLost(Exception):
+    """The connection broke while its request body was read: nothing to answer."""
+
+
 class _Refused(Exception):
     """An answer other than 200: the status and a one-line message (a JSON body)."""
 
@@ -136,14 +159,104 @@ def _one_line(exc: BaseException) -> str:
     return " ".join(str(exc).split()) or type(exc).__name__
 
 
+def _show(x: Any) -> str:
+    """A JSON value in a message: short values as JSON, others by their kind."""
+    if isinstance(x, (bool, int, float, str)) or x is None:
+        s = json.dumps(x)
+        return s if len(s) <= 40 else s[:37] + "..."
+    return {dict: "an object", list: "a list"}.get(type(x), type(x).__name__)
+
+
+def _what_rows(X: Any, b: int) -> str:
+    """What arrived where (n, b) rows of numbers were expected: the first thing wrong."""
+    if not isinstance(X, list):
+        return _show(X)
+    for k, row in enumerate(X):
+        if not isinstance(row, list):
+            return f"{_show(row)} as row {k}"
+        if len(row) != b:
+            return f"row {k} of length {len(row)}"
+        for j, x in enumerate(row):
+            if isinstance(x, bool) or not isinstance(x, (int, float)):
+                return f"{_show(x)} at [{k}][{j}]"
+            if isinstance(x, int) and abs(x) >= 2**63:
+                return f"{_show(x)} at [{k}][{j}], too large"
+    return f"{len(X)} rows"
+
+
+def _rows(key: str, X: Any, n: int, b: int) -> np.ndarray:
+    """``X`` (JSON rows, or an array read from a binary body) as an (n, b) float64 array,
+    else 400 naming the field, the expectation and what arrived."""
+    A = None
+    if isinstance(X, np.ndarray):
+        A = X
+    elif isinstance(X, list):
+        try:
+            A = np.array(X)     # no dtype: strings, bools and ragged rows stay visible
+        except (ValueError, TypeError, OverflowError):
+            A = None
+    if A is None or A.dtype.kind not in "iuf" or A.ndim != 2:
+        raise _Refused(400, f'"{key}": expected {n} rows of {b} numbers (vertices x bones), '
+                            f"got {_what_rows(X, b)}")
+    if A.shape != (n, b):
+        raise _Refused(400, f"{key} must have shape ({n}, {b}) (vertices, bones), got "
+                            f"{A.shape}")
+    return A.astype(np.float64)
+
+
+def _same_file(a: Path, b: Path) -> bool:
+    if os.path.realpath(a) == os.path.realpath(b):
+        return True
+    try:
+        return os.path.samefile(a, b)
+    except OSError:
+        return False
+
+
 class _HTTPServer(ThreadingHTTPServer):
+    """A thread per connection, at most MAX_HANDLERS at once; the rest wait in a listen
+    queue of REQUEST_QUEUE (the default of 5 resets connections under a burst)."""
+
     daemon_threads = True
+    request_queue_size = REQUEST_QUEUE
     viewer: ViewerServer
+
+    def __init__(self, *args, **kwargs):
+        self.closing = False
+        self._slots = threading.BoundedSemaphore(MAX_HANDLERS)
+        super().__init__(*args, **kwargs)
 
     def server_bind(self) -> None:
         # HTTPServer.server_bind looks the address up in DNS (getfqdn); 127.0.0.1 needs none.
         socketserver.TCPServer.server_bind(self)
         self.server_name, self.server_port = self.server_address[:2]
+
+    def process_request(self, request, client_address) -> None:
+        # Wait for a free handler; meanwhile new connections wait in the listen queue.
+        while not self._slots.acquire(timeout=0.1):
+            if self.closing:
+                self.shutdown_request(request)
+                return
+        try:
+            super().process_request(request, client_address)
+        except BaseException:
+            self._slots.release()
+            raise
+
+    def process_request_thread(self, request, client_address) -> None:
+        try:
+            super().process_request_thread(request, client_address)
+        finally:
+            self._slots.release()
+
+    def handle_error(self, request, client_address) -> None:
+        # A connection the client dropped, reset or let time out is no error of ours;
+        # anything else is a bug, said in one line (socketserver prints a traceback).
+        exc = sys.exc_info()[1]
+        if isinstance(exc, OSError):
+            return
+        print(f"stbs view: internal error: {type(exc).__name__}: {_one_line(exc)}",
+              file=sys.stderr)
 
 
 class ViewerServer:
@@ -186,11 +299,18 @@ class ViewerServer:
         An animation of the rig's skeleton to open the page's timeline with (``GET
         /api/clip``), e.g. a capture retargeted onto the rig or a character file's own
         animation; held as it is, so the page plays exactly :meth:`stbs.Clip.pose`.
+    inputs : iterable of paths, keyword-only
+        The files the rig, the clip and any pose were read from (the rig file, the
+        motion, a mapping). For the server's life these and ``rig_source`` are its
+        inputs: each save runs inside :func:`stbs.io._inputs.tracking` with them noted,
+        so a save that would write over one of them answers 409, even with
+        ``"overwrite": true``, and leaves it untouched.
 
     Raises
     ------
     ValueError
-        A bad port or target, or weights the viewer cannot use.
+        A bad port or target (``rig_target`` one of the inputs included), or weights
+        the viewer cannot use.
     OSError
         The port is taken.
 
@@ -215,7 +335,8 @@ class ViewerServer:
                  rig_target: str | os.PathLike | None = None,
                  pose_folder: str | os.PathLike | None = None, name: str = "rig",
                  extras: dict | None = None, max_body: int = MAX_BODY, verbose: bool = False,
-                 clip=None, rig_source: str | os.PathLike | None = None):
+                 clip=None, rig_source: str | os.PathLike | None = None,
+                 inputs=()):
         if isinstance(port, bool) or not isinstance(port, int) or not 0 <= port <= 65535:
             raise ValueError(f"port must be an integer in 0..65535 (0: any free port), "
                              f"got {port!r}")
@@ -229,6 +350,20 @@ class ViewerServer:
             raise ValueError(f"rig_target must be a {', '.join(RIG_TARGETS)} file in an "
                              f"existing folder, got {str(self.rig_target)!r}")
         self.rig_source = None if rig_source is None else Path(rig_source)
+        if isinstance(inputs, (str, os.PathLike)):
+            inputs = [inputs]
+        try:
+            self.inputs = [Path(os.fspath(p)) for p in inputs]
+        except TypeError:
+            raise ValueError(f"inputs must be paths (str or os.PathLike), got "
+                             f"{inputs!r}") from None
+        if self.rig_source is not None:
+            self.inputs.insert(0, self.rig_source)
+        if self.rig_target is not None:
+            same = next((p for p in self.inputs if _same_file(p, self.rig_target)), None)
+            if same is not None:
+                raise ValueError(f"rig_target {str(self.rig_target)!r} is a file this viewer "
+                                 f"reads ({str(same)!r}); choose another path")
         self.pose_folder = None if pose_folder is None else Path(pose_folder)
         if self.pose_folder is not None and not self.pose_folder.is_dir():
             raise ValueError(f"pose_folder must be an existing folder, got "
@@ -264,6 +399,21 @@ class ViewerServer:
         """The page's URL with the token: ``http://127.0.0.1:PORT/?token=TOKEN``."""
         return f"http://{HOST}:{self.port}/?token={self.token}"
 
+    @contextlib.contextmanager
+    def _writing(self):
+        """Every save runs inside :func:`stbs.io._inputs.tracking` with this server's
+        inputs noted, so the atomic writers refuse to write over one of them (and over
+        a file the writer itself reads, such as a glTF ``rig_source``'s buffers).
+
+        Per save rather than for the server's whole life: a run tracked for its life
+        would also record every file the rest of the process reads meanwhile (a script
+        loading the rig the page just saved), and refuse the next save over it.
+        """
+        with tracking():
+            for p in self.inputs:
+                note_input(p)
+            yield
+
     def serve_forever(self) -> None:
         """Serve until :meth:`shutdown` (from another thread) or KeyboardInterrupt."""
         self._serving = True
@@ -284,6 +434,7 @@ class ViewerServer:
 
     def shutdown(self) -> None:
         """Stop serving (waits for the serving loop to end) and close the socket."""
+        self._httpd.closing = True
         if self._serving:
             self._httpd.shutdown()
             self._serving = False
@@ -397,7 +548,7 @@ class ViewerServer:
             raise _Refused(409, "saving poses is off: this rig has no folder of its own "
                                 "(start stbs view with --save-as PATH)")
         folder = self.pose_folder
-        with self._lock:
+        with self._lock, self._writing():
             try:
                 target = clips.target_in(folder, name, default_stem=f"{self.name}-pose",
                                          pattern=POSE_NAME, suffix=".json",
@@ -407,6 +558,8 @@ class ViewerServer:
             name = target.name
             try:
                 write_pose(target, pose)
+            except SameFileError:
+                raise _Refused(409, clips.same_file_message(name)) from None
             except OSError as exc:
                 raise _Refused(500, f"could not write {str(target)!r}: "
                                     f"{exc.strerror or _one_line(exc)}") from None
@@ -429,12 +582,12 @@ class ViewerServer:
 
     def save_clip(self, obj: Any) -> dict:
         """``POST /api/save-clip``: write a clip file into the pose folder."""
-        with self._lock:
+        with self._lock, self._writing():
             return clips.save_clip(obj, self.clips, self.pose_folder, self.name)
 
     def export_clip(self, obj: Any) -> dict:
         """``POST /api/export``: write the page's frames as an animated GIF (pose folder)."""
-        with self._lock:
+        with self._lock, self._writing():
             return clips.export_gif(obj, self.pose_folder, self.name)
 
     def save_rig(self, W=None, E=None) -> dict:
@@ -449,7 +602,10 @@ class ViewerServer:
                 except (ValueError, TypeError) as exc:
                     raise _Refused(400, _one_line(exc)) from None
             try:
-                write_rig(self.rig_target, rig, source=self.rig_source)
+                with self._writing():
+                    write_rig(self.rig_target, rig, source=self.rig_source)
+            except SameFileError:
+                raise _Refused(409, clips.same_file_message(self.rig_target.name)) from None
             except ValueError as exc:   # e.g. no endpoint weights to add to a glTF file
                 raise _Refused(409, f"could not write {self.rig_target.name}: "
                                     f"{_one_line(exc)}") from None
@@ -502,11 +658,19 @@ class ViewerServer:
             W = self._with_weights(rig, W, None).W
         kw = {k: obj[k] for k in options if k in obj}
         try:
-            E = endpoint_weights(rig.V, sk, method=method, W=W, F=rig.F, T=rig.T, **kw)
-        except (ValueError, TypeError) as exc:
+            # errstate is per thread: an option that overflows (alpha=1e308) gives a
+            # non-finite column, refused below, and no RuntimeWarning on stderr.
+            with np.errstate(all="ignore"):
+                E = endpoint_weights(rig.V, sk, method=method, W=W, F=rig.F, T=rig.T, **kw)
+        except (ValueError, TypeError, ArithmeticError) as exc:
             raise _Refused(400, _one_line(exc)) from None
         col = E[:, [i]].toarray()[:, 0] if hasattr(E, "toarray") else np.asarray(E)[:, i]
-        return i, str(method), np.clip(np.asarray(col, dtype=np.float64), 0.0, 1.0)
+        col = np.asarray(col, dtype=np.float64)
+        if not np.isfinite(col).all():
+            given = ", ".join(f"{k}={_show(v)}" for k, v in kw.items()) or "no options"
+            raise _Refused(400, f"method {method!r} with {given} gives endpoint weights that "
+                                f"are not finite for bone {i}; choose other options")
+        return i, str(method), np.clip(col, 0.0, 1.0)
 
     @staticmethod
     def _with_weights(rig: Rig, W, E) -> Rig:
@@ -517,10 +681,7 @@ class ViewerServer:
         for key, X in (("W", W), ("E", E)):
             if X is None:
                 continue
-            X = np.asarray(X, dtype=np.float64)
-            if X.shape != (n, b):
-                raise _Refused(400, f"{key} must have shape ({n}, {b}) (vertices, bones), got "
-                                    f"{X.shape}")
+            X = _rows(key, X, n, b)
             if not np.isfinite(X).all():
                 raise _Refused(400, f"{key} must be finite")
             lo, hi = float(X.min(initial=0)), float(X.max(initial=0))
@@ -582,6 +743,8 @@ class _Handler(BaseHTTPRequestHandler):
         self.send_header("Cross-Origin-Resource-Policy", "same-origin")
         for k, v in (headers or {}).items():
             self.send_header(k, v)
+        if not self._body_read and self._has_body():
+            self.close_connection = True        # the unread body would be the next request
         if self.close_connection:
             self.send_header("Connection", "close")
         self.end_headers()
@@ -600,6 +763,8 @@ class _Handler(BaseHTTPRequestHandler):
             self._refuse(r)
         except (BrokenPipeError, ConnectionResetError):
             self.close_connection = True
+        except _BodyLost:
+            self.close_connection = True        # no one to answer: the client has gone
         except Exception as exc:    # a bug: answer 500, say it once on stderr
             print(f"stbs view: internal error on {method} "
                   f"{getattr(self, 'path', '').split('?', 1)[0]}: {type(exc).__name__}: "
@@ -607,18 +772,38 @@ class _Handler(BaseHTTPRequestHandler):
             self._refuse(_Refused(500, f"internal error: {type(exc).__name__}"))
 
     def _refuse(self, r: _Refused) -> None:
-        if not self._body_read and self._has_body():
-            self.close_connection = True        # the unread body would be the next request
         try:
             self._json({"error": r.message, "status": r.status}, r.status, r.headers)
         except (BrokenPipeError, ConnectionResetError):
             self.close_connection = True
 
     def _has_body(self) -> bool:
-        cl = self.headers.get("Content-Length")
-        return "Transfer-Encoding" in self.headers or (cl is not None and cl.strip() != "0")
+        cls = self.headers.get_all("Content-Length") or []
+        return "Transfer-Encoding" in self.headers or any(c.strip() != "0" for c in cls)
 
     # ---------------------------------------------------------------- the rules
+    def _check_framing(self) -> None:
+        """Where the body ends must be unambiguous: one Content-Length, a number of at
+        most 20 digits, and never beside a Transfer-Encoding (else 400, and the
+        connection is closed: its next request could not be found)."""
+        cls = self.headers.get_all("Content-Length") or []
+        te = self.headers.get_all("Transfer-Encoding") or []
+        why = None
+        if len(cls) > 1:
+            why = (f"Content-Length: expected one header, got {len(cls)} "
+                   f"({', '.join(repr(c.strip()[:24]) for c in cls[:4])})")
+        elif cls and te:
+            why = ("request body: expected a Content-Length or a Transfer-Encoding, got both "
+                   "(send one Content-Length)")
+        elif cls:
+            cl = cls[0].strip()
+            if not (cl.isascii() and cl.isdigit() and len(cl) <= 20):
+                why = (f"Content-Length: expected a number of bytes (at most 20 digits), got "
+                       f"{cl[:24]!r}{'...' if len(cl) > 24 else ''}")
+        if why is not None:
+            self.close_connection = True
+            raise _Refused(400, why)
+
     def _check_host(self) -> None:
         port = self.server.viewer.port
         hosts = self.headers.get_all("Host") or []
@@ -654,41 +839,44 @@ class _Handler(BaseHTTPRequestHandler):
             self.close_connection = True
             raise _Refused(411, "request body: send it with a Content-Length (no chunked "
                                 "transfer encoding)")
-        cl = self.headers.get("Content-Length")
+        cl = self.headers.get("Content-Length")       # one, digits: _check_framing
         if cl is None:
             return b""
-        cl = cl.strip()
-        if not (cl.isascii() and cl.isdigit()):
-            self.close_connection = True
-            raise _Refused(400, f"Content-Length: expected a number of bytes, got {cl!r}")
-        n = int(cl)
+        n = int(cl.strip())
         limit = self.server.viewer.max_body
         if n > limit:
             self.close_connection = True
-            raise _Refused(413, f"request body of {n} bytes: the limit is {limit} bytes")
-        data = self.rfile.read(n)
-        if len(data) != n:
+            raise _Refused(413, f"request body of {n} bytes: the limit is {limit} bytes "
+                                "(max_body)")
+        chunks, got = [], 0
+        try:
+            while got < n:      # read1: what has arrived, so a short body counts as such
+                chunk = self.rfile.read1(min(n - got, 1 << 20))
+                if not chunk:
+                    break
+                chunks.append(chunk)
+                got += len(chunk)
+        except TimeoutError:
             self.close_connection = True
-            raise _Refused(400, f"request body: expected {n} bytes, got {len(data)}")
-        return data
+            raise _Refused(400, f"request body: expected {n} bytes, got {got} before the "
+                                f"connection was idle for {self.timeout:g} s") from None
+        except OSError:
+            raise _BodyLost from None
+        if got != n:
+            self.close_connection = True
+            raise _Refused(400, f"request body: expected {n} bytes, got {got} before the "
+                                "connection was closed")
+        return b"".join(chunks)
 
     def _json_body(self) -> Any:
-        data = self._body()
         try:
-            text = data.decode("utf-8")
-        except UnicodeDecodeError as exc:
-            raise _Refused(400, f"request body: expected UTF-8 JSON text, found an "
-                                f"undecodable byte at offset {exc.start}") from None
-        try:
-            return json.loads(text)
-        except json.JSONDecodeError as exc:
-            raise _Refused(400, f"request body, line {exc.lineno}, column {exc.colno}: not "
-                                f"valid JSON ({exc.msg})") from None
-        except RecursionError:
-            raise _Refused(400, "request body: JSON nested too deeply") from None
+            return load_json(self._body(), "request body")
+        except JsonError as exc:
+            raise _Refused(400, str(exc)) from None
 
     # ---------------------------------------------------------------- routes
     def _route(self, method: str) -> None:
+        self._check_framing()
         self._check_host()
         if method not in ("GET", "POST"):
             raise _Refused(405, f"method {method} not allowed: GET or POST",
@@ -812,16 +1000,10 @@ class _Handler(BaseHTTPRequestHandler):
             raise _Refused(400, 'request body: expected a JSON object {"W": [[...]], "E": '
                                 "[[...]]} (both optional), or raw weights with "
                                 "Content-Type application/octet-stream")
-        out = []
-        for key in ("W", "E"):
-            X = obj.get(key)
-            if X is not None:
-                try:
-                    X = np.array(X, dtype=np.float64)
-                except (ValueError, TypeError):
-                    raise _Refused(400, f'"{key}": expected rows of numbers') from None
-            out.append(X)
-        return tuple(out)
+        rig = self.server.viewer.rig
+        n, b = len(rig.V), rig.skeleton.n_bones
+        return tuple(None if obj.get(key) is None else _rows(key, obj[key], n, b)
+                     for key in ("W", "E"))
 
     def _binary_weights(self, data: bytes) -> tuple:
         names = [s.strip() for s in (self.headers.get("X-Stbs-Arrays") or "W").split(",")]
