@@ -305,6 +305,22 @@ def test_the_body_length_must_be_unambiguous(srv, capfd, lines, words):
     assert capfd.readouterr().err == ""
 
 
+@pytest.mark.parametrize("data, status", [
+    (b"GET /" + b"a" * 70000 + b" HTTP/1.1\r\n\r\n", 414),
+    (b"GET / HTTP/1.1\r\nX-Long: " + b"a" * 70000 + b"\r\n\r\n", 431),
+    (b"GET / HTTP/1.1\r\n" + b"".join(b"X-%d: 1\r\n" % i for i in range(120)) + b"\r\n", 431),
+    (b"GET / HTTP/1.x\r\n\r\n", 400),         # no version to answer in: a bare body
+])
+def test_requests_http_server_refuses_itself_are_json_too(srv, capfd, data, status):
+    reply = raw(srv, data)
+    if status != 400:
+        assert status_line(reply).startswith(f"HTTP/1.1 {status} ".encode())
+        head_, _, reply = reply.partition(b"\r\n\r\n")
+        assert b"Content-Type: application/json" in head_ and b"Connection: close" in head_
+    assert json.loads(reply)["status"] == status and json.loads(reply)["error"]
+    assert capfd.readouterr().err == ""
+
+
 def test_an_unread_body_is_never_read_as_the_next_request(srv):
     hidden = (f"POST /api/pose HTTP/1.1\r\nHost: 127.0.0.1:{srv.port}\r\nX-Stbs-Token: "
               f"{srv.token}\r\nContent-Length: 31\r\n\r\n{{\"stretch\": {{\"upper\": 3.0}}}}")

@@ -55,6 +55,7 @@ import secrets
 import socketserver
 import sys
 import threading
+from http import HTTPStatus
 from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
 from pathlib import Path
 from typing import Any
@@ -731,6 +732,20 @@ class _Handler(BaseHTTPRequestHandler):
 
     def log_message(self, format: str, *args: Any) -> None:
         pass
+
+    def send_error(self, code: int, message: str | None = None, explain: str | None = None
+                   ) -> None:
+        # The refusals http.server makes itself (a malformed request line, a header line
+        # over 64 KiB or over 100 headers, an unsupported HTTP version) are JSON too, and
+        # end the connection: what follows cannot be trusted to start a request.
+        self.close_connection = True
+        self._body_read = True
+        why = message or HTTPStatus(code).phrase
+        try:
+            self._json({"error": f"request: {_one_line(Exception(why))}", "status": int(code)},
+                       int(code))
+        except OSError:
+            pass
 
     def _send(self, status: int, body: bytes, content_type: str, *,
               headers: dict | None = None) -> None:
