@@ -18,12 +18,12 @@ request goes through, in this order (docs/viewer.md has the full API):
    sends an ``Origin`` must come from this server's own origin, else 403. Only then
    is an unknown path 404, so nothing about the API is learnt without the token.
 5. **Bodies** are read only with exactly one ``Content-Length`` (two, or one beside a
-   ``Transfer-Encoding``: 400; chunked bodies: 411) of at most ``max_body`` bytes (else
-   413, without reading it); a body that stops short (the connection idle for
-   ``_Handler.timeout`` seconds, or closed) is 400 and closes the connection. JSON
-   bodies are read by :func:`stbs.io._parse.load_json` (nesting, digits, finite numbers).
-   Every refusal is a JSON ``{"error": one line, "status": N}``; client input never
-   gets a 500 or prints on stderr.
+   ``Transfer-Encoding``: 400, checked before any other rule; chunked bodies: 411) of
+   at most ``max_body`` bytes (else 413, without reading it); a body that stops short
+   (the connection idle for ``_Handler.timeout`` seconds, or closed) is 400 and closes
+   the connection. JSON bodies are read by :func:`stbs.io._parse.load_json` (nesting,
+   digits, finite numbers). Every refusal is a JSON ``{"error": one line, "status":
+   N}``; client input never gets a 500 or prints on stderr.
 
 Connections: the listen queue holds :data:`REQUEST_QUEUE` connections and at most
 :data:`MAX_HANDLERS` are answered at once (a thread each); the rest wait in the queue.
