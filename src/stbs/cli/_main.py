@@ -27,7 +27,6 @@ from collections.abc import Sequence
 from typing import NoReturn
 
 from .._optional import OptionalDependencyError, missing
-from ..io._inputs import check_output, note_input, tracking
 from . import animate as _animate
 from . import bench as _bench
 from . import deform as _deform
@@ -148,6 +147,8 @@ def main(argv: Sequence[str] | None = None) -> int:
                 advice = missing(need(args), "this command") if need else None
                 if advice:
                     raise OptionalDependencyError(advice)
+                from ..io._inputs import tracking
+
                 with tracking():
                     _refuse_output_over_input(args)
                     code = args._cmd.run(args)
@@ -177,6 +178,8 @@ def _refuse_output_over_input(args: argparse.Namespace) -> None:
     """Note the files named on the command line as inputs and refuse, before any work,
     an output that is one of them (the writers check again, for files that inputs
     name in turn, such as a glTF's buffers)."""
+    from ..io._inputs import check_output, note_input
+
     outs = []
     for key, value in vars(args).items():
         values = value if isinstance(value, list) else [value]
