@@ -323,9 +323,16 @@ class Clip:
         # keys of the linear rotation channels in one hemisphere with their predecessor,
         # so slerp between neighbours takes the shortest arc
         q = np.array(q, dtype=float)
-        for i in range(1, k):
-            flip = (np.sum(q[i] * q[i - 1], axis=-1) < 0) & (self._rmode != _MODE["cubic"])
-            q[i, flip] *= -1
+        if k > 1:
+            # key i is flipped when its dot with key i-1, as flipped, is negative: the
+            # flips multiply along the keys (a parity of negative dots), starting afresh
+            # (unflipped) after a dot of exactly 0; vectorised, as a clip may hold 100 000
+            # keys
+            dots = np.sum(q[1:] * q[:-1], axis=-1)                     # (k-1, b)
+            neg = np.cumsum(dots < 0, axis=0)
+            base = np.maximum.accumulate(np.where(dots == 0, neg, 0), axis=0)
+            flip = ((neg - base) % 2 == 1) & (self._rmode != _MODE["cubic"])
+            q[1:][flip] *= -1
         self.quaternions, self.stretch, self.twist, self.offsets = q, sigma, theta, D
         for a in (self.times, self.quaternions, self.stretch, self.twist, self.offsets):
             a.setflags(write=False)

@@ -17,6 +17,7 @@ import stbs
 from stbs.cli import main
 from stbs.io import FormatError, read_bvh, read_clip, read_pose
 from stbs.io.bvh import MAX_FRAMES, MAX_JOINT_FRAMES, MAX_JOINTS
+from stbs.io.clip import MAX_KEY_BONES, MAX_KEYS
 from stbs.retargeting import joint_map
 
 DEEP = "[" * 100_000 + "]" * 100_000
@@ -322,6 +323,26 @@ def test_a_parsed_pose_or_clip_of_python_values(tmp_path):
     ]:
         with pytest.raises(ValueError, match=match):
             read_clip(obj, sk)
+
+
+def test_a_clip_at_the_key_limits(tmp_path):
+    # 100 000 keys read in seconds (once a minute: a pose made for each key); keys ×
+    # bones beyond the limit are refused before any pose is read
+    path = tmp_path / "long.json"
+    path.write_text(_clip(*(_key(time=f"{k / 30!r}", pose='{"rotate": {"fore": {"axis": '
+                                                           f'[0, 0, 1], "angle": {k % 360}}}}}}}')
+                            for k in range(MAX_KEYS))))
+    t = time.perf_counter()
+    clip = read_clip(path, _arm())
+    assert time.perf_counter() - t < 15
+    assert len(clip) == MAX_KEYS and clip.end == pytest.approx((MAX_KEYS - 1) / 30)
+    np.testing.assert_allclose(clip.pose(1.0).rotations[1] @ [1, 0, 0],
+                               [np.cos(np.radians(30)), np.sin(np.radians(30)), 0], atol=1e-12)
+    wide = stbs.Skeleton(np.arange(102)[:, None] * [1.0, 0, 0], np.c_[:101, 1:102])
+    n = MAX_KEY_BONES // 101 + 1
+    path.write_text('{"keys": [' + ", ".join(["0"] * n) + "]}")
+    _refused(lambda p: read_clip(p, wide), path, rf'"keys": expected at most {MAX_KEY_BONES} '
+                                                 rf"keys × bones, found {n} keys × 101 bones")
 
 
 def test_legitimate_extremes_still_read(tmp_path):

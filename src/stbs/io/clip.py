@@ -7,7 +7,8 @@ A clip file is one JSON object::
               {"time": 1.5, "pose": {"stretch": {"neck": 1.6}}}]}
 
 ``keys``
-    A non-empty list of at most :data:`MAX_KEYS` (100 000) ``{"time": seconds, "pose":
+    A non-empty list of at most :data:`MAX_KEYS` (100 000; and keys × bones of the
+    skeleton at most :data:`MAX_KEY_BONES`, 10 000 000) ``{"time": seconds, "pose":
     POSE}``; the times finite, of magnitude at most :data:`stbs.clip.MAX_TIME` (1e6 s)
     and distinct (any order: they are sorted), each pose in either form of a pose file
     (:mod:`stbs.io.pose`: the joints form or the forward-kinematics form, bones by
@@ -35,12 +36,15 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from .. import _checks
 from ..clip import INTERPOLATIONS, MAX_TIME, Clip
 from ..skeleton import Skeleton
 from .pose import POSE_FORMS, _key, _load, _Reader, _show, pose_to_dict
 
-__all__ = ["read_clip", "write_clip", "clip_to_dict", "CLIP_KEYS", "MAX_KEYS", "MAX_FPS"]
+__all__ = ["read_clip", "write_clip", "clip_to_dict", "CLIP_KEYS", "MAX_KEYS", "MAX_FPS",
+           "MAX_KEY_BONES"]
 
 #: Keys of a clip object.
 CLIP_KEYS = ("fps", "interpolation", "keys")
@@ -48,6 +52,9 @@ CLIP_KEYS = ("fps", "interpolation", "keys")
 MAX_KEYS = 100_000
 #: Largest ``fps`` of a clip file.
 MAX_FPS = 1000.0
+#: Most keys × bones of the skeleton in a clip file (the clip's arrays take 80 bytes
+#: each: about 800 MB at this limit).
+MAX_KEY_BONES = 10_000_000
 
 
 def read_clip(path_or_dict: str | os.PathLike | Mapping[str, Any], sk: Skeleton) -> Clip:
@@ -122,7 +129,15 @@ def _clip(src: str, obj: Any, sk: Skeleton) -> Clip:
     if len(keys) > MAX_KEYS:
         raise ValueError(f'{src}: "keys": expected at most {MAX_KEYS} keys, found '
                          f"{len(keys)}")
-    pairs = []
+    b = sk.n_bones
+    if len(keys) * b > MAX_KEY_BONES:
+        raise ValueError(f'{src}: "keys": expected at most {MAX_KEY_BONES} keys × bones, '
+                         f"found {len(keys)} keys × {b} bones")
+    # the keys in the local frame, as the clip holds them, written in place (no pose of
+    # its own for each key, rotations made in one batch: a long clip reads quickly)
+    reader = _Reader(src, sk)
+    L, sigma, theta, D = reader.defaults(len(keys))
+    times = np.empty(len(keys))
     seen: dict[float, int] = {}
     for k, key in enumerate(keys):
         where = f"keys[{k}]"
@@ -142,9 +157,15 @@ def _clip(src: str, obj: Any, sk: Skeleton) -> Clip:
             raise ValueError(f"{src}: {where}: time {t:g} is also the time of "
                              f"keys[{seen[t]}]; key times must be distinct")
         seen[t] = k
-        pose = _Reader(f"{src}: {where}.pose", sk).pose(key["pose"])
-        pairs.append((t, pose))
-    return Clip(pairs, fps=fps, interpolation=interp)
+        times[k] = t
+        reader.src = f"{src}: {where}.pose"
+        reader.into(key["pose"], k, sigma, theta, D, L)
+    reader.turn(L)
+    if np.any(np.diff(times) < 0):      # keys in any order: sorted by time
+        order = np.argsort(times, kind="stable")
+        times, L, sigma, theta, D = times[order], L[order], sigma[order], theta[order], D[order]
+    return Clip.from_local(sk, times, rotations=L, stretch=sigma, twist=theta, offsets=D,
+                           fps=fps, interpolation=interp)
 
 
 def clip_to_dict(clip: Clip, *, form: str = "auto", degrees: bool = True) -> dict:

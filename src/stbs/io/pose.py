@@ -217,6 +217,9 @@ class _Reader:
         self.src = src
         self.sk = sk
         self.scale = 1.0
+        # rotations of the forward-kinematics form noted until turn(): (slot, bone,
+        # axis, angle in radians)
+        self._turns: list[tuple[int, int, list[float], float]] = []
 
     def fail(self, where: str, msg: str) -> ValueError:
         return ValueError(f"{self.src}: {where}: {msg}")
@@ -284,6 +287,26 @@ class _Reader:
 
     # ------------------------------------------------------------------ forms
     def pose(self, obj: Any) -> Pose:
+        L, sigma, theta, D = self.defaults(1)
+        joints = self.into(obj, 0, sigma, theta, D, L)
+        if joints is not None:
+            return joints
+        self.turn(L)
+        return Pose.from_local(self.sk, L[0], stretch=sigma[0], twist=theta[0], offsets=D[0])
+
+    def defaults(self, n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Local-frame arrays of ``n`` rest poses: rotations (n, b, d, d), stretch (n, b),
+        twist (n, b, 2), offsets (n, b, d)."""
+        b, d = self.sk.n_bones, self.sk.dim
+        return (np.tile(np.eye(d), (n, b, 1, 1)), np.ones((n, b)), np.zeros((n, b, 2)),
+                np.zeros((n, b, d)))
+
+    def into(self, obj: Any, k: int, sigma: np.ndarray, theta: np.ndarray, D: np.ndarray,
+             L: np.ndarray) -> Pose | None:
+        """Write the pose ``obj`` describes, in the local frame (:meth:`stbs.Pose.local`),
+        into slot ``k`` of the arrays of :meth:`defaults`. The rotations of the
+        forward-kinematics form are only noted, all turned into matrices at once by
+        :meth:`turn`; a pose of the joints form is made, written whole, and returned."""
         if not isinstance(obj, Mapping):
             raise ValueError(f"{self.src}: expected a JSON object with keys "
                              f"{', '.join(JOINTS_KEYS)} or {', '.join(FK_KEYS)}, "
@@ -299,13 +322,31 @@ class _Reader:
                 raise self.fail(f"key {_key(unknown[0])}", "not allowed with \"joints\"; the "
                                 f"joints form takes {', '.join(JOINTS_KEYS)} (the "
                                 f"forward-kinematics form takes {', '.join(FK_KEYS)})")
-            return self.joints_form(obj)
+            pose = self.joints_form(obj)
+            L[k], D[k] = pose.local()
+            sigma[k], theta[k] = pose.stretch, pose.twist
+            return pose
         unknown = sorted(keys - set(FK_KEYS), key=str)
         if unknown:
             raise self.fail(f"key {_key(unknown[0])}", "unknown key; expected "
                             f"{', '.join(FK_KEYS)} (forward kinematics) or "
                             f"{', '.join(JOINTS_KEYS)} (posed joints)")
-        return self.fk_form(obj)
+        self.fk_form(obj, k, sigma[k], theta[k], D[k])
+        return None
+
+    def turn(self, L: np.ndarray) -> None:
+        """The noted rotations, as matrices in one batch, into ``L`` (n, b, d, d)."""
+        if not self._turns:
+            return
+        k, i, axes, angles = (np.array(x) for x in zip(*self._turns, strict=True))
+        self._turns = []
+        if self.sk.dim == 2:
+            L[k, i] = tf.rotation_2d(angles)
+        else:
+            # each axis scaled to a largest component of 1 first: a tiny axis (1e-200)
+            # has a norm
+            axes = axes / np.abs(axes).max(axis=1, keepdims=True)
+            L[k, i] = tf.axis_angle_to_matrix(axes, angles)
 
     def joints_form(self, obj: Mapping) -> Pose:
         sk = self.sk
@@ -332,13 +373,15 @@ class _Reader:
                                         f"its rest length, found {pose.stretch[i]:.6g} times")
         return pose
 
-    def fk_form(self, obj: Mapping) -> Pose:
+    def fk_form(self, obj: Mapping, k: int, sigma: np.ndarray, theta: np.ndarray,
+                D: np.ndarray) -> None:
+        """Stretch (b,), twist (b, 2) and offsets (b, d) of slot ``k`` from ``obj``;
+        its rotations noted for :meth:`turn`."""
         sk = self.sk
-        b, d = sk.n_bones, sk.dim
-        L = np.tile(np.eye(d), (b, 1, 1))
+        d = sk.dim
         for i, (label, spec) in self.table("rotate", obj.get("rotate", {})).items():
-            L[i] = self.rotation(label, spec)
-        sigma = np.ones(b)
+            axis, angle = self.rotation(label, spec)
+            self._turns.append((k, i, axis, angle))
         for i, (label, v) in self.table("stretch", obj.get("stretch", {})).items():
             sigma[i] = self.number(label, v)
             if sigma[i] <= 0:
@@ -348,10 +391,9 @@ class _Reader:
                 raise self.fail(label, f"expected a stretch from {MIN_STRETCH:g} to "
                                        f"{MAX_STRETCH:g} (posed length / rest length), found "
                                        f"{_show(v)}")
-        theta = np.zeros((b, 2))
-        for i, (_, s, e) in self.twist_pairs(obj.get("twist", {})).items():
-            theta[i] = (s, e)
-        D = np.zeros((b, d))
+        if "twist" in obj:
+            for i, (_, s, e) in self.twist_pairs(obj["twist"]).items():
+                theta[i] = (s, e)
         if "translate" in obj:
             tr = obj["translate"]
             if isinstance(tr, Mapping):
@@ -360,9 +402,9 @@ class _Reader:
             else:
                 D[sk.roots] = self.vector('"translate"', tr, d,
                                           f"a {d}D offset or {{bone: offset}}")
-        return Pose.from_local(sk, L, stretch=sigma, twist=theta, offsets=D)
 
-    def rotation(self, label: str, spec: Any) -> np.ndarray:
+    def rotation(self, label: str, spec: Any) -> tuple[list[float], float]:
+        """The axis (3 numbers, not all 0; 2D: none) and angle (radians) of a rotation."""
         d = self.sk.dim
         want = '{"axis": [x, y, z], "angle": a}' if d == 3 else '{"angle": a}'
         if not isinstance(spec, Mapping):
@@ -375,14 +417,13 @@ class _Reader:
             raise self.fail(label, f'missing "angle"; expected {want}')
         angle = self.number(f'{label} "angle"', spec["angle"]) * self.scale
         if d == 2:
-            return tf.rotation_2d(angle)
+            return [0.0, 0.0, 1.0], angle
         if "axis" not in spec:
             raise self.fail(label, f'missing "axis"; expected {want}')
         axis = self.vector(f'{label} "axis"', spec["axis"], 3, "a 3D axis")
         if not np.any(axis):
             raise self.fail(f'{label} "axis"', "expected a non-zero axis, found [0, 0, 0]")
-        # scaled to a largest component of 1 first: a tiny axis (1e-200) has a norm
-        return tf.axis_angle_to_matrix(axis / np.abs(axis).max(), angle)
+        return axis.tolist(), angle
 
 
 # ----------------------------------------------------------------------------- writing
