@@ -147,8 +147,10 @@ class Motion:
         try:
             return self.names.index(name)
         except ValueError:
-            raise ValueError(f"no joint named {name!r}; the joints are "
-                             f"{', '.join(self.names)}") from None
+            shown = ", ".join(n if len(n) <= 60 else n[:57] + "..." for n in self.names[:40])
+            more = f", ... ({len(self.names)} in all)" if len(self.names) > 40 else ""
+            key = name if len(str(name)) <= 60 else str(name)[:57] + "..."
+            raise ValueError(f"no joint named {key!r}; the joints are {shown}{more}") from None
 
     def children(self, k: int) -> list[int]:
         """The joints whose parent is ``k``."""

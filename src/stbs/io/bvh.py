@@ -34,27 +34,29 @@ What this reader accepts, as the files found in the wild have it:
 - ``End Site`` blocks, which become joints of their own named ``PARENT_end``
   (``end_site`` True, rotation always the identity); zero offsets (zero-length bones);
   several roots;
-- LF, CRLF and CR line ends, mixed in one file; tabs or spaces; keywords in any case;
-  a ``Frame Time`` written ``.0083333``; frame lines that wrap (the values of the
-  MOTION block are read as one stream and must number ``Frames`` × channels).
+- LF, CRLF and CR line ends, mixed in one file; a UTF-8 byte order mark; tabs or
+  spaces; keywords in any case; a ``Frame Time`` written ``.0083333``; frame lines
+  that wrap (the values of the MOTION block are read as one stream and must number
+  ``Frames`` × channels).
 
 What it refuses, with one :class:`~stbs.io.FormatError` naming the file, the line, what
 was expected and what was found, before allocating anything the file's content does
 not justify:
 
-- more than :data:`MAX_JOINTS` joints (end sites included), a joint name longer than
-  :data:`MAX_NAME` characters, a repeated name, a second ``OFFSET`` or ``CHANNELS``
-  line in one joint; hierarchies of any depth are read without recursion;
-- ``Frames`` that is not a whole number from 1 to :data:`MAX_FRAMES` (``max_frames=``
-  overrides it), or frames × joints above :data:`MAX_JOINT_FRAMES` (the size of the
-  per-frame rotations; ``max_joint_frames=`` overrides it);
-- a ``Frame Time`` that is not a number of seconds from :data:`MIN_FRAME_TIME` to
-  :data:`MAX_FRAME_TIME`;
+- more than :data:`MAX_JOINTS` (10 000) joints, end sites included, a joint name longer
+  than :data:`MAX_NAME` (256) characters, a repeated name, a second ``OFFSET`` or
+  ``CHANNELS`` line in one joint; hierarchies of any depth are read without recursion;
+- ``Frames`` that is not a whole number from 1 to :data:`MAX_FRAMES` (1 000 000;
+  ``max_frames=`` overrides it), or frames × joints above :data:`MAX_JOINT_FRAMES`
+  (10 000 000, the size of the per-frame transforms; ``max_joint_frames=`` overrides
+  it);
+- a ``Frame Time`` that is not a number of seconds from :data:`MIN_FRAME_TIME` (1e-6)
+  to :data:`MAX_FRAME_TIME` (3600);
 - a MOTION block whose values do not number ``Frames`` × channels, or, when no joint
   has a channel, that has fewer lines than ``Frames`` (one, empty, per frame);
 - an OFFSET or channel value that is not a number, NaN, infinite, or larger in
-  magnitude than :data:`MAX_VALUE` (centimetres, metres or degrees: far beyond any
-  capture).
+  magnitude than :data:`MAX_VALUE` (1e6: centimetres, millimetres or degrees, far
+  beyond any capture).
 """
 
 from __future__ import annotations
@@ -482,6 +484,8 @@ def read_bvh(path: str | os.PathLike, *, max_frames: int | None = None,
     # One line end (LF) for all three; latin-1 never fails to decode and keeps the byte
     # offsets of ``raw`` and ``text`` equal.
     raw = p.read_bytes().replace(b"\r\n", b"\n").replace(b"\r", b"\n")
+    if raw.startswith(b"\xef\xbb\xbf"):      # a UTF-8 byte order mark
+        raw = raw[3:]
     text = raw.decode("latin-1")
     tok = _Tokens(p, text)
     names, parents, offsets, channels, end_site = _parse_hierarchy(p, tok)
