@@ -391,6 +391,10 @@ def capture(tmp_path_factory):
     ('{"upper": ["Hips"]}', r"no joint a list"),
     ('{"upper": {"a": "Hips"}}', r"no joint an object"),
     ("[1, 2]", r"expected a JSON object \{rig bone: capture joint\}, got a JSON list"),
+    ('{"upper": null}', r"mapping: expected a capture joint for some bone, found none \(every "
+                        r"bone null or left out\); the rig's bones are upper, fore; the joints "
+                        r"of '.*walk.bvh' are Hips, j0, j1, j2"),
+    ("{}", r"expected a capture joint for some bone, found none"),
     ("", r"line 1, column 1: mapping file not JSON"),
 ])
 def test_a_hostile_mapping_file_is_one_value_error(tmp_path, capture, text, match):

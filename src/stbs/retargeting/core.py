@@ -246,6 +246,11 @@ def _given_mapping(mapping: Any, sk: Skeleton, motion: Motion) -> np.ndarray:
             raise ValueError(f"{src}: the motion has no joint {_short(joint)} (for bone "
                              f"{_short(bone)}); its joints are {_listed(_joint_names(motion))}")
         out[i] = joints[joint]
+    if not (out >= 0).any():
+        raise ValueError(f"{src}: expected a capture joint for some bone, found none (every "
+                         f"bone null or left out); the rig's bones are {_listed(sk.names, 20)}; "
+                         f"the joints of {_where(motion)} are "
+                         f"{_listed(_joint_names(motion), 20)}")
     return out
 
 
