@@ -262,7 +262,8 @@ class Motion:
             drive.append(p)
             end.append(k)
         if not BE:
-            raise ValueError("the motion has no bone: every joint's offset is zero")
+            where = repr(self.source) if self.source else "the motion"
+            raise ValueError(f"{where} has no bone: every joint's offset is zero")
         end_a = np.array(end, dtype=np.int64)
         bone_to = {int(e): i for i, e in enumerate(end_a)}     # bone ending at joint e
         size = np.zeros(j, dtype=np.int64)                     # joints below each joint
