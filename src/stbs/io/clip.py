@@ -8,7 +8,7 @@ A clip file is one JSON object::
 
 ``keys``
     A non-empty list of at most :data:`MAX_KEYS` (100 000; and keys × bones of the
-    skeleton at most :data:`MAX_KEY_BONES`, 10 000 000) ``{"time": seconds, "pose":
+    skeleton at most :data:`MAX_KEY_BONES`, 5 000 000) ``{"time": seconds, "pose":
     POSE}``; the times finite, of magnitude at most :data:`stbs.clip.MAX_TIME` (1e6 s)
     and distinct (any order: they are sorted), each pose in either form of a pose file
     (:mod:`stbs.io.pose`: the joints form or the forward-kinematics form, bones by
@@ -52,9 +52,10 @@ CLIP_KEYS = ("fps", "interpolation", "keys")
 MAX_KEYS = 100_000
 #: Largest ``fps`` of a clip file.
 MAX_FPS = 1000.0
-#: Most keys × bones of the skeleton in a clip file (the clip's arrays take 80 bytes
-#: each: about 800 MB at this limit).
-MAX_KEY_BONES = 10_000_000
+#: Most keys × bones of the skeleton in a clip file: the clip's arrays take 80 bytes
+#: each (400 MB at this limit; reading peaks at about twice that). 100 000 keys of a
+#: 50-bone rig, 10 minutes at 120 fps of a 65-bone character.
+MAX_KEY_BONES = 5_000_000
 
 
 def read_clip(path_or_dict: str | os.PathLike | Mapping[str, Any], sk: Skeleton) -> Clip:
@@ -136,7 +137,7 @@ def _clip(src: str, obj: Any, sk: Skeleton) -> Clip:
     # the keys in the local frame, as the clip holds them, written in place (no pose of
     # its own for each key, rotations made in one batch: a long clip reads quickly)
     reader = _Reader(src, sk)
-    L, sigma, theta, D = reader.defaults(len(keys))
+    Q, sigma, theta, D = reader.defaults(len(keys), quats=True)
     times = np.empty(len(keys))
     seen: dict[float, int] = {}
     for k, key in enumerate(keys):
@@ -159,12 +160,12 @@ def _clip(src: str, obj: Any, sk: Skeleton) -> Clip:
         seen[t] = k
         times[k] = t
         reader.src = f"{src}: {where}.pose"
-        reader.into(key["pose"], k, sigma, theta, D, L)
-    reader.turn(L)
+        reader.into(key["pose"], k, sigma, theta, D, Q)
+    reader.turn(Q)
     if np.any(np.diff(times) < 0):      # keys in any order: sorted by time
         order = np.argsort(times, kind="stable")
-        times, L, sigma, theta, D = times[order], L[order], sigma[order], theta[order], D[order]
-    return Clip.from_local(sk, times, rotations=L, stretch=sigma, twist=theta, offsets=D,
+        times, Q, sigma, theta, D = times[order], Q[order], sigma[order], theta[order], D[order]
+    return Clip.from_local(sk, times, rotations=Q, stretch=sigma, twist=theta, offsets=D,
                            fps=fps, interpolation=interp)
 
 

@@ -210,6 +210,16 @@ def _render(x: Any, budget: int, depth: int) -> str:
     return f"<{type(x).__name__}>"
 
 
+def _quats(R: np.ndarray, d: int) -> np.ndarray:
+    """(..., d, d) rotations as (..., 4) unit quaternions (2D: about z)."""
+    if d == 3:
+        return tf.matrix_to_quat(R)
+    half = 0.5 * tf.angle_2d(R)
+    q = np.zeros(R.shape[:-2] + (4,))
+    q[..., 0], q[..., 3] = np.cos(half), np.sin(half)
+    return q
+
+
 class _Reader:
     """Validates one pose object; ``src`` prefixes every message."""
 
@@ -294,12 +304,18 @@ class _Reader:
         self.turn(L)
         return Pose.from_local(self.sk, L[0], stretch=sigma[0], twist=theta[0], offsets=D[0])
 
-    def defaults(self, n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """Local-frame arrays of ``n`` rest poses: rotations (n, b, d, d), stretch (n, b),
-        twist (n, b, 2), offsets (n, b, d)."""
+    def defaults(self, n: int, *, quats: bool = False
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Local-frame arrays of ``n`` rest poses: rotations (n, b, d, d) (``quats``: unit
+        quaternions (n, b, 4), ``(w, x, y, z)``, 2D about z), stretch (n, b), twist
+        (n, b, 2), offsets (n, b, d)."""
         b, d = self.sk.n_bones, self.sk.dim
-        return (np.tile(np.eye(d), (n, b, 1, 1)), np.ones((n, b)), np.zeros((n, b, 2)),
-                np.zeros((n, b, d)))
+        if quats:
+            L = np.zeros((n, b, 4))
+            L[..., 0] = 1.0
+        else:
+            L = np.tile(np.eye(d), (n, b, 1, 1))
+        return L, np.ones((n, b)), np.zeros((n, b, 2)), np.zeros((n, b, d))
 
     def into(self, obj: Any, k: int, sigma: np.ndarray, theta: np.ndarray, D: np.ndarray,
              L: np.ndarray) -> Pose | None:
@@ -323,7 +339,8 @@ class _Reader:
                                 f"joints form takes {', '.join(JOINTS_KEYS)} (the "
                                 f"forward-kinematics form takes {', '.join(FK_KEYS)})")
             pose = self.joints_form(obj)
-            L[k], D[k] = pose.local()
+            Lk, D[k] = pose.local()
+            L[k] = Lk if L.ndim == 4 else _quats(Lk, self.sk.dim)
             sigma[k], theta[k] = pose.stretch, pose.twist
             return pose
         unknown = sorted(keys - set(FK_KEYS), key=str)
@@ -335,18 +352,24 @@ class _Reader:
         return None
 
     def turn(self, L: np.ndarray) -> None:
-        """The noted rotations, as matrices in one batch, into ``L`` (n, b, d, d)."""
+        """The noted rotations, in one batch, into ``L``: matrices (n, b, d, d) or
+        quaternions (n, b, 4), as :meth:`defaults` made it."""
         if not self._turns:
             return
         k, i, axes, angles = (np.array(x) for x in zip(*self._turns, strict=True))
         self._turns = []
         if self.sk.dim == 2:
-            L[k, i] = tf.rotation_2d(angles)
-        else:
-            # each axis scaled to a largest component of 1 first: a tiny axis (1e-200)
-            # has a norm
-            axes = axes / np.abs(axes).max(axis=1, keepdims=True)
-            L[k, i] = tf.axis_angle_to_matrix(axes, angles)
+            if L.ndim == 4:
+                L[k, i] = tf.rotation_2d(angles)
+            else:
+                L[k, i] = 0.0
+                L[k, i, 0], L[k, i, 3] = np.cos(0.5 * angles), np.sin(0.5 * angles)
+            return
+        # each axis scaled to a largest component of 1 first: a tiny axis (1e-200) has a
+        # norm
+        axes = axes / np.abs(axes).max(axis=1, keepdims=True)
+        q = tf.axis_angle_to_quat(axes, angles)
+        L[k, i] = tf.quat_to_matrix(q) if L.ndim == 4 else q
 
     def joints_form(self, obj: Mapping) -> Pose:
         sk = self.sk
