@@ -53,9 +53,9 @@ parent's rotation and twist there. Every pose has this form exactly
 Limits: every number (coordinate, offset, angle, twist, axis component) has a
 magnitude of at most :data:`MAX_VALUE` (1e6; twists past 360 degrees are kept), and a
 stretch lies from :data:`MIN_STRETCH` to :data:`MAX_STRETCH` (1e-6 to 1e6), given or
-(joints form) implied by the posed joints. A file is read as JSON of bounded size and
-nesting with finite numbers (:func:`stbs.io.read_json`'s rules), each key at most once
-in an object.
+(joints form) implied by the posed joints. A file is read as JSON of at most 256 MiB,
+nested at most 64 deep, with finite numbers and integers of at most 20 digits, each key
+at most once in an object.
 
 Errors are one :class:`ValueError` naming the file (or ``pose`` for a dict), the
 key and the bone, what was expected and what was found: a file that is not such
