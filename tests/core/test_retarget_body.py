@@ -145,3 +145,15 @@ def test_the_shared_captures_read_as_bodies(shared_data):
                        "LowerLeg_L": "lshin", "Foot_L": "lfoot", "Toes_L": "ltoe",
                        "Hand_R": "rhand"}.items():
         assert bn[name] == role, name
+
+
+def test_tree_depths_in_one_pass_over_a_chain_ten_thousand_deep():
+    """A capture's hierarchy 10,000 joints deep (a hostile BVH) gets its depths in one
+    pass, not by walking up from every joint (joints x depth steps)."""
+    from stbs.retargeting.body import Tree
+
+    n = 10_000
+    tree = Tree(np.arange(-1, n - 1), np.zeros((n, 3)), np.zeros(n, dtype=bool))
+    np.testing.assert_array_equal(tree.depth, np.arange(n))
+    forked = Tree([-1, 0, 0, 2, -1], np.zeros((5, 3)), np.zeros(5, dtype=bool))
+    np.testing.assert_array_equal(forked.depth, [0, 1, 1, 2, 0])

@@ -67,12 +67,14 @@ class Tree:
         for k, p in enumerate(self.parents):
             if p >= 0:
                 self.kids[p].append(k)
+        # depth by a walk down from the roots: linear, however deep the tree
         depth = np.zeros(n, dtype=np.int64)
-        for k in range(n):
-            p, d = self.parents[k], 0
-            while p >= 0 and d <= n:
-                p, d = self.parents[p], d + 1
-            depth[k] = d
+        stack = [k for k in range(n) if self.parents[k] < 0]
+        while stack:
+            k = stack.pop()
+            for c in self.kids[k]:
+                depth[c] = depth[k] + 1
+                stack.append(c)
         self.depth = depth
         ext = np.ptp(self.X, axis=0) if n else np.zeros(3)
         self.size = float(np.linalg.norm(ext)) or 1.0
