@@ -84,6 +84,11 @@ def test_a_valid_file_reads(tmp_path):
     ("https://example.com/x.bin", "a data: URI or a relative path"),
     ("C:/x.bin", "a data: URI or a relative path"),
     ("..\\outside.bin", "a data: URI or a relative path"),
+    ("%2e%2e/outside.bin", "leads out of it"),
+    ("/proc/self/environ", "a data: URI or a relative path"),
+    ("file:outside.bin", "a data: URI or a relative path"),
+    ("FILE:///etc/passwd", "a data: URI or a relative path"),
+    ("sub%2F..%2F..%2Foutside.bin", "leads out of it"),
 ])
 def test_buffer_uris_stay_in_the_folder(tmp_path, uri, match):
     (tmp_path / "outside.bin").write_bytes(b"\0" * 4096)
@@ -178,7 +183,7 @@ def test_glb_chunks_are_checked(tmp_path, edit, match):
 
 
 @pytest.mark.parametrize("text, match", [
-    ("[" * 100_000 + "]" * 100_000, "nested too deeply|a glTF 2.0 JSON object"),
+    ("[" * 100_000 + "]" * 100_000, "nested at most 64 deep"),
     ('{"asset": {"version": "2.0"}, "nodes": [{"translation": [NaN, 0, 0]}]}',
      "unreadable JSON"),
     ("\xff\xfe", "unreadable JSON"),
@@ -261,3 +266,297 @@ def test_the_command_line_says_one_line(tmp_path, capsys):
         err = capsys.readouterr().err.strip().splitlines()
         assert len(err) == 1 and "leads out of it" in err[0], err
     assert not (tmp_path / "o.glb").exists()
+
+
+
+# ---------------------------------------------------------------------- named findings
+# (a) buffers: never read from outside the file's folder, nor copied when unused, nor
+# shown in an error
+
+
+def _canary(tmp_path):
+    """A file outside the glTF file's folder holding a unique marker."""
+    marker = b"CANARY-" + os.urandom(8).hex().encode()
+    (tmp_path / "canary.bin").write_bytes(marker * 64)
+    inner = tmp_path / "in"
+    inner.mkdir()
+    return inner, marker
+
+
+def _opened(monkeypatch):
+    """The files the glTF container opens (its module's ``open``, spied on)."""
+    from stbs.io.gltf import container
+
+    seen = []
+
+    def spy(file, *args, **kwargs):
+        seen.append(os.path.realpath(file))
+        return open(file, *args, **kwargs)
+
+    monkeypatch.setattr(container, "open", spy, raising=False)
+    return seen
+
+
+def _buffers_of(path) -> list[bytes]:
+    f = GltfFile(path)
+    return [bytes(f.buffer(k)) for k in range(len(f.doc["buffers"]))]
+
+
+def test_an_unused_buffer_naming_a_file_outside_is_never_read_nor_copied(tmp_path,
+                                                                        monkeypatch):
+    inner, marker = _canary(tmp_path)
+
+    def edit(d):
+        d["buffers"] += [{"uri": "/etc/passwd", "byteLength": 64},
+                         {"uri": "../canary.bin", "byteLength": 64},
+                         {"uri": "file:///proc/self/environ", "byteLength": 64}]
+
+    path = _gltf(inner, edit)
+    seen = _opened(monkeypatch)
+    for out in (tmp_path / "out.gltf", tmp_path / "out.glb"):
+        assert main(["weights", str(path), "--endpoint", "projection", "-o", str(out)]) == 0
+        data = out.read_bytes()
+        doc = GltfFile(out).doc
+        assert len(doc["buffers"]) == 1
+        assert all(b"root:x:0:0" not in x and marker not in x
+                   for x in [data, *_buffers_of(out)])
+    assert not [p for p in seen if "canary" in p or p.startswith(("/etc", "/proc"))]
+
+
+@pytest.mark.parametrize("uri", ["/proc/self/environ", "../canary.bin", "link.bin",
+                                 "linked/canary.bin", "%2e%2e/canary.bin",
+                                 "file:../canary.bin"])
+def test_a_refused_buffer_shows_none_of_its_bytes(tmp_path, monkeypatch, capsys, uri):
+    inner, marker = _canary(tmp_path)
+    monkeypatch.setenv("STBS_TEST_SECRET", marker.decode())
+    os.symlink(tmp_path / "canary.bin", inner / "link.bin")
+    os.symlink(tmp_path, inner / "linked")
+    path = _gltf(inner, lambda d: d["buffers"][0].update(uri=uri))
+    seen = _opened(monkeypatch)
+    assert main(["weights", str(path), "--endpoint", "projection", "-o",
+                 str(tmp_path / "o.glb")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("stbs weights: error: ")
+    assert str(path) in err[0] and marker.decode() not in err[0]
+    assert not [p for p in seen if "canary" in p or p.startswith("/proc")]
+    assert not (tmp_path / "o.glb").exists()
+
+
+# (b) node cycles: one clear line, at once
+@pytest.mark.parametrize("edit, match", [
+    (lambda d: d["nodes"][2].update(children=[2]), r"nodes\[2\].children: node indices in "
+                                                    r"0..2 other than 2, found 2"),
+    # a cycle among two nodes above the skeleton's root (neither of them a joint)
+    (lambda d: d["nodes"].extend([{"name": "A", "children": [0, 4]},
+                                  {"name": "B", "children": [3]}]),
+     r"a tree of nodes \(no cycles\), found a cycle through nodes 3 -> 4 -> 3$"),
+    (lambda d: d["nodes"].extend([{"children": [k + 1]} for k in range(3, 3 + 20_000)]
+                                 + [{"children": [3]}]),
+     r"a cycle through nodes 3 -> 4 -> 5 -> 6 -> 7 -> 8 -> 9 -> 10 \.\.\. -> 3$"),
+])
+def test_node_cycles(tmp_path, edit, match):
+    _refused(_gltf(tmp_path, edit), match)         # within 5 s (under tracemalloc)
+
+
+# (c) a count with nothing behind it
+def test_an_accessor_of_400_million_elements_without_data_is_refused(tmp_path):
+    def edit(d):
+        d["accessors"].append({"componentType": 5126, "count": 400_000_000, "type": "VEC3"})
+        d["meshes"][0]["primitives"][0]["attributes"]["POSITION"] = len(d["accessors"]) - 1
+
+    _refused(_gltf(tmp_path, edit), "at most .* bytes of arrays decoded", peak_mb=16)
+
+
+# (d) commands that use no animation never decode one
+def test_commands_without_animations_never_decode_one(tmp_path, monkeypatch):
+    from stbs.io.gltf import read as gltf_read
+
+    b = Builder()
+    doc = _doc(b)
+    n = 200_000
+    t = b.add(np.arange(n, dtype=float) / 30)
+    q = np.tile([0, 0, 0, 1.0], (n, 1))
+    q[::2] = [0, 0, 1.0, 0]
+    doc["animations"] = [{"samplers": [{"input": t, "output": b.add(q)}],
+                          "channels": [{"sampler": 0, "target": {"node": 1,
+                                                                 "path": "rotation"}}]}]
+    path = write(tmp_path / "keys.glb", doc, b, glb=True)
+
+    def never(*args, **kwargs):
+        raise AssertionError("an animation was decoded")
+
+    monkeypatch.setattr(gltf_read, "decode_clip", never)
+    (tmp_path / "p.json").write_text('{"rotate": {"0": {"axis": [0, 0, 1], "angle": 30}}}')
+    for argv in (["deform", str(path), "--pose", str(tmp_path / "p.json"), "-o",
+                  str(tmp_path / "o.npz")],
+                 ["weights", str(path), "--endpoint", "projection", "-o",
+                  str(tmp_path / "o.glb")],
+                 ["export", str(path), "-o", str(tmp_path / "e.glb")]):
+        t0 = time.perf_counter()
+        assert main(argv) == 0
+        assert time.perf_counter() - t0 < 2, argv[0]
+    # the write-back keeps the 200 000 keys as they were
+    _, clips = read_gltf(tmp_path / "o.glb")
+    assert GltfFile(tmp_path / "o.glb").doc["accessors"][t]["count"] == n
+
+
+# (e) component types as the specification lists them for each attribute
+def _retype(attr, ctype, normalized=None):
+    def edit(d):
+        prim = d["meshes"][0]["primitives"][0]
+        i = prim["indices"] if attr == "indices" else prim["attributes"][attr]
+        d["accessors"][i]["componentType"] = ctype
+        if normalized is not None:
+            d["accessors"][i]["normalized"] = normalized
+    return edit
+
+
+@pytest.mark.parametrize("attr, ctype, normalized, match", [
+    ("POSITION", 5125, None, "components of float, found unsigned int"),
+    ("POSITION", 5123, True, "components of float, found normalized unsigned short"),
+    ("POSITION", 5126, True, "normalized only on byte and short components, found "
+                             "normalized float"),
+    ("JOINTS_0", 5126, None, "components of unsigned byte, unsigned short, found float"),
+    ("JOINTS_0", 5125, None, "components of unsigned byte, unsigned short, found unsigned "
+                             "int"),
+    ("JOINTS_0", 5121, True, "found normalized unsigned byte"),
+    ("WEIGHTS_0", 5121, False, "components of float, normalized unsigned byte, normalized "
+                               "unsigned short, found unsigned byte"),
+    ("WEIGHTS_0", 5125, None, "found unsigned int"),
+    ("WEIGHTS_0", 5120, True, "found normalized byte"),
+    ("indices", 5126, None, "components of unsigned byte, unsigned short, unsigned int, "
+                            "found float"),
+    ("indices", 5120, None, "found byte"),
+    ("indices", 5122, None, "found short"),
+])
+def test_attribute_component_types(tmp_path, attr, ctype, normalized, match):
+    # the data is not rewritten: the type is refused before it is decoded
+    _refused(_gltf(tmp_path, _retype(attr, ctype, normalized)), match)
+
+
+def test_inverse_bind_matrices_and_keys_are_floats(tmp_path):
+    def ibm(d):
+        d["accessors"].append({"bufferView": 0, "componentType": 5125, "count": 2,
+                               "type": "MAT4"})
+        d["skins"][0]["inverseBindMatrices"] = len(d["accessors"]) - 1
+
+    _refused(_gltf(tmp_path, ibm), "inverseBindMatrices.*components of float, found "
+                                   "unsigned int")
+    path = _gltf(tmp_path, lambda d: d["accessors"][d["animations"][0]["samplers"][0][
+        "input"]].update(componentType=5123), name="k.gltf", anim=True)
+    _, clips = read_gltf(path)
+    with pytest.raises(FormatError, match="input.*components of float, found unsigned short"):
+        clips["animation_0"]
+
+
+def test_quantized_positions_with_khr_mesh_quantization(tmp_path):
+    b = Builder()
+    doc = _doc(b)
+    V = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0]], float)
+    doc["meshes"][0]["primitives"][0]["attributes"]["POSITION"] = b.add(
+        V * 65535, 5123, normalized=True)
+    doc["extensionsUsed"] = doc["extensionsRequired"] = ["KHR_mesh_quantization"]
+    path = write(tmp_path / "q.gltf", doc, b, glb=False)
+    assert np.allclose(read_gltf(path)[0].V, V)
+    d = json.loads(path.read_text())
+    del d["extensionsUsed"], d["extensionsRequired"]
+    path.write_text(json.dumps(d))
+    _refused(path, "components of float, found normalized unsigned short")
+
+
+def test_an_accessor_named_for_two_uses_is_checked_for_each(tmp_path):
+    # POSITION (VEC3) named as WEIGHTS_0 too, after it was decoded: refused by its type,
+    # not an IndexError from the array decoded for the first use
+    def edit(d):
+        at = d["meshes"][0]["primitives"][0]["attributes"]
+        at["WEIGHTS_0"] = at["POSITION"]
+
+    _refused(_gltf(tmp_path, edit), "WEIGHTS_0.*of type VEC4, found VEC3")
+    path = _gltf(tmp_path, lambda d: d["animations"][0]["samplers"][0].update(
+        output=d["animations"][0]["samplers"][0]["input"]), name="k.gltf", anim=True)
+    _, clips = read_gltf(path)
+    with pytest.raises(FormatError, match="output.*of type VEC4, found SCALAR"):
+        clips["animation_0"]
+
+
+# (f) base64 in data URIs: every character base64, never dropped
+@pytest.mark.parametrize("damage, match", [
+    (lambda body: body[:8] + "!!" + body[10:], "base64 data, found invalid characters"),
+    (lambda body: body[:8] + "\n " + body[10:], "base64 data, found invalid characters"),
+    (lambda body: body[:8] + "%41" + body[11:], "base64 data, found invalid characters"),
+    (lambda body: body[:8] + "é" + body[9:], "base64 data, found invalid characters"),
+    (lambda body: body[:4] + "==" + body[6:], "base64 data, found invalid characters"),
+    (lambda body: body[:5] + "==", r"a data: URI of \d+ bytes \(its byteLength\), found one "
+                                   r"of \d+ bytes"),
+])
+def test_a_data_uri_with_characters_outside_base64(tmp_path, damage, match):
+    def edit(d):
+        head, body = d["buffers"][0]["uri"].split(",", 1)
+        d["buffers"][0]["uri"] = head + "," + damage(body)
+
+    _refused(_gltf(tmp_path, edit), r"buffers\[0\]: " + match)
+
+
+# (g) GLB versions
+@pytest.mark.parametrize("version", [0, 1, 3])
+def test_a_glb_of_another_version_is_refused(tmp_path, version):
+    path = _gltf(tmp_path, lambda x: x[:4] + struct.pack("<I", version) + x[8:], name="v.glb")
+    _refused(path, f"a GLB of version 2, found version {version}")
+
+
+# (h) numbers that break linear algebra, empty parts: errors naming the file, what was
+# expected and what was found (never NumPy's own message)
+@pytest.mark.parametrize("edit, match", [
+    (lambda d: d["nodes"][0].update(matrix=[1e308, 0, 0, 0, 0, 1e308, 0, 0,
+                                            0, 0, 1e308, 0, 0, 0, 0, 1]),
+     r"positions of magnitude at most 1e\+12, found 1e\+308"),
+    (lambda d: (d["nodes"][0].update(matrix=[1e200, 0, 0, 0, 0, 1e200, 0, 0,
+                                             0, 0, 1e200, 0, 0, 0, 0, 1]),
+                d["nodes"][1].update(scale=[1e200, 1e200, 1e200])),
+     "an overflow"),
+    (lambda d: d["nodes"][0].update(rotation=[1e308, 1e308, 0, 0]), None),
+    (lambda d: d["nodes"][0].update(rotation=[0, 0, 0, 0]), "a non-zero rotation"),
+    (lambda d: d["nodes"][0].update(scale=[0, 0, 0]), None),
+    (lambda d: d.update(skins=[]), "a skin"),
+    (lambda d: d["skins"][0].update(joints=[]), "at least one joint node"),
+    (lambda d: d.update(meshes=[]), "an index >= 0 below 0"),
+    (lambda d: d["meshes"][0].update(primitives=[]), "a skinned mesh with triangles"),
+    (lambda d: d["meshes"][0]["primitives"][0].update(attributes={}), "a POSITION attribute"),
+    (lambda d: d["meshes"][0]["primitives"][0].update(mode=1), "a skinned mesh with triangles"),
+    (lambda d: d["meshes"][0]["primitives"][0].update(mode=5), None),
+    (lambda d: d["bufferViews"][0].update(byteStride=252), "inside its buffer view"),
+    (lambda d: d["bufferViews"][0].update(byteStride=253), "byteStride in 4..252"),
+    (lambda d: d["bufferViews"][0].update(byteStride=8), "byteStride of at least .* 12"),
+    (lambda d: d["accessors"][0].update(byteOffset=2), "inside its buffer view"),
+    (lambda d: d["accessors"][0].update(type="MAT5"), "a componentType in"),
+])
+@pytest.mark.filterwarnings("ignore:.*is points or lines")
+def test_numbers_and_empty_parts_give_a_clear_error(tmp_path, edit, match):
+    """Each is refused with one FormatError (or, where the file is merely odd, read)."""
+    path = _gltf(tmp_path, edit)
+    if match is None:
+        try:
+            rig, _ = read_gltf(path)
+        except FormatError as exc:
+            msg = str(exc)
+            assert str(path) in msg and "expected" in msg and "found" in msg
+        else:
+            assert np.isfinite(rig.V).all()
+        return
+    _refused(path, match)
+
+
+def test_a_huge_scale_in_an_animation_is_refused_by_name(tmp_path):
+    def edit(d):
+        s = d["animations"][0]["samplers"][0]
+        d["animations"][0]["channels"][0]["target"]["path"] = "translation"
+        d["accessors"].append(dict(d["accessors"][s["output"]], type="VEC3", count=2))
+        s["output"] = len(d["accessors"]) - 1
+        d["nodes"][0]["scale"] = [1e300] * 3
+
+    path = _gltf(tmp_path, edit, name="k.gltf", anim=True)
+    try:
+        _, clips = read_gltf(path)
+        clips["animation_0"]
+    except FormatError as exc:
+        assert str(path) in str(exc) and "found" in str(exc)

@@ -16,8 +16,10 @@ import numpy as np
 
 from .container import GltfFile, pad4
 
-__all__ = ["COMPONENTS", "TYPES", "read_accessor", "AccessorWriter",
-           "FLOAT", "UBYTE", "USHORT", "UINT", "ARRAY_BUFFER", "ELEMENT_ARRAY_BUFFER"]
+__all__ = ["COMPONENTS", "TYPES", "NAMES", "read_accessor", "AccessorWriter", "describe",
+           "FLOAT_ONLY", "UNIT", "SIGNED_UNIT", "QUANTIZED", "JOINT_INDICES",
+           "VERTEX_INDICES", "FLOAT", "UBYTE", "USHORT", "UINT", "ARRAY_BUFFER",
+           "ELEMENT_ARRAY_BUFFER"]
 
 BYTE, UBYTE, SHORT, USHORT, UINT, FLOAT = 5120, 5121, 5122, 5123, 5125, 5126
 ARRAY_BUFFER, ELEMENT_ARRAY_BUFFER = 34962, 34963
@@ -33,6 +35,31 @@ COMPONENTS = {
 }
 #: accessor type -> number of components
 TYPES = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4, "MAT2": 4, "MAT3": 9, "MAT4": 16}
+#: componentType -> its name in the specification, for messages
+NAMES = {BYTE: "byte", UBYTE: "unsigned byte", SHORT: "short", USHORT: "unsigned short",
+         UINT: "unsigned int", FLOAT: "float"}
+
+# What an accessor may hold, by its use: (componentType, normalized) pairs, as the
+# glTF 2.0 specification lists them (3.7.2.1 meshes, 3.7.3 skins, 3.11 animations) and
+# KHR_mesh_quantization widens them for positions.
+#: POSITION, morph target offsets, inverse bind matrices, key times, translations
+FLOAT_ONLY = frozenset({(FLOAT, False)})
+#: WEIGHTS_n (and stbs's _ENDPOINT_WEIGHTS_n)
+UNIT = FLOAT_ONLY | {(UBYTE, True), (USHORT, True)}
+#: rotation keys
+SIGNED_UNIT = UNIT | {(BYTE, True), (SHORT, True)}
+#: POSITION and morph target offsets of a file using KHR_mesh_quantization
+QUANTIZED = FLOAT_ONLY | {(c, n) for c in (BYTE, UBYTE, SHORT, USHORT) for n in (False, True)}
+#: JOINTS_n
+JOINT_INDICES = frozenset({(UBYTE, False), (USHORT, False)})
+#: a primitive's indices
+VERTEX_INDICES = JOINT_INDICES | {(UINT, False)}
+
+
+def describe(allowed) -> str:
+    """``allowed`` (pairs as above) in words: ``float, normalized unsigned byte``."""
+    return ", ".join(("normalized " if n else "") + NAMES[c]
+                     for c, n in sorted(allowed, key=lambda x: (x[0] != FLOAT, x[0], x[1])))
 
 
 def _view(f: GltfFile, v: int, what: str) -> tuple[memoryview, int, int, int | None]:
@@ -70,7 +97,8 @@ def _raw(f: GltfFile, view: int, offset: int, dt: np.dtype, nc: int, count: int,
 
 
 def read_accessor(f: GltfFile, i: Any, what: str, *, floats: bool = True,
-                  types: tuple[str, ...] | None = None) -> np.ndarray:
+                  types: tuple[str, ...] | None = None,
+                  components: frozenset | None = None) -> np.ndarray:
     """Accessor ``i`` of ``f`` as a (count, components) array.
 
     Parameters
@@ -85,15 +113,17 @@ def read_accessor(f: GltfFile, i: Any, what: str, *, floats: bool = True,
         False: int64 (indices, joints), the raw values.
     types : tuple of str, optional
         Accessor types allowed (``("VEC3",)``).
+    components : frozenset of (int, bool), optional
+        The (componentType, normalized) pairs allowed (:data:`FLOAT_ONLY`,
+        :data:`UNIT`, :data:`JOINT_INDICES`...).
 
     Returns
     -------
     (count, components) float64 or int64
         Decoded once per file and kind; later calls return the same (read-only) array.
     """
-    key = (i, floats)
-    if isinstance(i, int) and key in f.cache:
-        return f.cache[key]
+    # what the accessor is checked against its use every time (one accessor may be
+    # named for two uses); decoded once
     a = f.item("accessors", i, what)
     where = f"accessors[{i}] ({what})"
     ctype = f.get(a, "componentType", "index", where)
@@ -105,10 +135,19 @@ def read_accessor(f: GltfFile, i: Any, what: str, *, floats: bool = True,
         raise f.error(f"{where}: of type {' or '.join(types)}", typ)
     if typ in ("MAT2", "MAT3") and COMPONENTS[ctype][0].itemsize < 4:
         raise f.error(f"{where}: a matrix of 4-byte components", "a column-padded matrix")
+    normalized = f.get(a, "normalized", "bool", where, False)
+    if normalized and ctype in (FLOAT, UINT):
+        raise f.error(f"{where}: normalized only on byte and short components",
+                      f"normalized {NAMES[ctype]}")
+    if components is not None and (ctype, normalized) not in components:
+        raise f.error(f"{where}: components of {describe(components)}",
+                      ("normalized " if normalized else "") + NAMES[ctype])
+    key = (i, floats)
+    if key in f.cache:
+        return f.cache[key]
     dt, norm = COMPONENTS[ctype]
     nc = TYPES[typ]
     count = f.get(a, "count", "count", where)
-    normalized = f.get(a, "normalized", "bool", where, False)
     view = f.get(a, "bufferView", "index", where, None)
     if view is None:
         f.reserve(count * nc * 8, where)

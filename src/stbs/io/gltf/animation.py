@@ -48,7 +48,7 @@ from ... import transforms as tf
 from ...clip import Clip
 from ...pose import local_arrays
 from ...skeleton import Skeleton
-from .accessors import read_accessor
+from .accessors import FLOAT_ONLY, SIGNED_UNIT, read_accessor
 from .container import GltfFile
 from .scene import Scene, polar, trs_matrices
 
@@ -119,14 +119,15 @@ class Channel:
             raise f.error(f"{what}: interpolation LINEAR, STEP or CUBICSPLINE", repr(mode))
         self.mode = _MODES[mode]
         T = read_accessor(f, f.get(sampler, "input", "index", what), f"{what} input",
-                          types=("SCALAR",))[:, 0]
+                          types=("SCALAR",), components=FLOAT_ONLY)[:, 0]
         if np.any(np.diff(T) <= 0):
             k = int(np.flatnonzero(np.diff(T) <= 0)[0])
             raise f.error(f"{what} input: increasing key times",
                           f"{T[k]:g} then {T[k + 1]:g}")
         m = 4 if path == "rotation" else 3
         out = read_accessor(f, f.get(sampler, "output", "index", what), f"{what} output",
-                            types=("VEC4",) if m == 4 else ("VEC3",))
+                            types=("VEC4",) if m == 4 else ("VEC3",),
+                            components=SIGNED_UNIT if m == 4 else FLOAT_ONLY)
         per = 3 if self.mode == "cubic" else 1
         if len(out) != per * len(T):
             raise f.error(f"{what} output: {per * len(T)} values ({len(T)} keys"
@@ -361,11 +362,16 @@ def decode_clip(f: GltfFile, scene: Scene, J: Joints, a: int, name: str) -> Clip
             else np.broadcast_to(S0[node], (k, 3))
         Nloc[node] = trs_matrices(np.asarray(t), np.asarray(q), np.asarray(s))
     G = {}
-    for node in order:
-        p = int(scene.parent[node])
-        G[node] = Nloc[node] if p < 0 else G[p] @ Nloc[node]
-    Gj = np.stack([G[j] for j in nodes], axis=1)                 # (k, b, 4, 4)
-    M = Gj @ J.ibm
+    with np.errstate(over="ignore", invalid="ignore"):
+        for node in order:
+            p = int(scene.parent[node])
+            G[node] = Nloc[node] if p < 0 else G[p] @ Nloc[node]
+        Gj = np.stack([G[j] for j in nodes], axis=1)                 # (k, b, 4, 4)
+        M = Gj @ J.ibm
+    if not np.isfinite(M).all():
+        kk = int(np.flatnonzero(~np.isfinite(M).all(axis=(1, 2, 3)))[0])
+        raise f.error(f"{label}: skin matrices that are finite at every key",
+                      f"an overflow at {U[kk]:g} s (transforms too large)")
     R, dev = polar(M[..., :3, :3])
     O = Gj[..., :3, 3]
     ones, zeros = np.ones((k, b)), np.zeros((k, b, 2))
@@ -449,7 +455,10 @@ def decode_clip(f: GltfFile, scene: Scene, J: Joints, a: int, name: str) -> Clip
         fps = 1.0 / float(step.mean())
     cubic_r = "cubic" in rmode
     cubic_d = "cubic" in dmode
-    return Clip.from_local(sk, U, rotations=quats, offsets=offs, fps=fps,
-                           rotation_interpolation=rmode, offset_interpolation=dmode,
-                           rotation_tangents=tuple(rtan) if cubic_r else None,
-                           offset_tangents=tuple(dtan) if cubic_d else None)
+    try:
+        return Clip.from_local(sk, U, rotations=quats, offsets=offs, fps=fps,
+                               rotation_interpolation=rmode, offset_interpolation=dmode,
+                               rotation_tangents=tuple(rtan) if cubic_r else None,
+                               offset_tangents=tuple(dtan) if cubic_d else None)
+    except ValueError as exc:
+        raise f.error(f"{label}: keys that make a clip", " ".join(str(exc).split())) from None

@@ -7,8 +7,10 @@ be safe on files from anywhere, and the rules are short enough to own:
 - a GLB's header and chunk lengths are checked against the file's size before any
   slicing; the JSON chunk comes first, at most one BIN chunk follows, others are
   skipped (as the specification asks);
-- the JSON is parsed with ``NaN``/``Infinity`` refused, and nesting too deep for
-  Python's parser is one error, not a crash;
+- the JSON is parsed by the safe loader (:func:`stbs.io._parse.load_json`): numbers
+  that are not finite (``NaN``, ``Infinity``, ``1e999``), integers of more than 20
+  digits and nesting deeper than 64 are one error, not a crash (nor a copy written
+  back that no JSON reader reads);
 - a buffer is opened the first time an accessor needs it, never before, so a rig
   read never touches the buffers only animations or images use. Its URI is a
   ``data:`` URI or a relative path that stays inside the file's own folder (no
@@ -37,7 +39,7 @@ from pathlib import Path
 from typing import Any
 from urllib.parse import unquote
 
-from .._parse import input_path
+from .._parse import input_path, load_json
 from ..errors import FormatError
 
 __all__ = ["GltfFile", "glb_bytes", "pad4", "BUDGET_BASE", "BUDGET_FACTOR"]
@@ -61,7 +63,7 @@ def pad4(data: bytes | bytearray, fill: bytes = b"\0") -> bytes:
 def glb_bytes(doc: dict, blob: bytes | None) -> bytes:
     """A GLB file: the 12-byte header, the JSON chunk (space-padded) and, when ``blob``
     is given, the BIN chunk (zero-padded), each to 4 bytes as the specification asks."""
-    js = pad4(json.dumps(doc, separators=(",", ":")).encode("utf-8"), b" ")
+    js = pad4(json.dumps(doc, separators=(",", ":"), allow_nan=False).encode("utf-8"), b" ")
     out = [struct.pack("<II", len(js), _JSON), js]
     if blob is not None:
         b = pad4(blob)
@@ -70,8 +72,14 @@ def glb_bytes(doc: dict, blob: bytes | None) -> bytes:
     return struct.pack("<4sII", _GLB_MAGIC, 2, 12 + len(body)) + body
 
 
-def _no_constant(name: str):
-    raise ValueError(f"{name} is not a JSON number")
+#: get()'s kinds of values
+_KINDS = {"index": lambda v: isinstance(v, int) and not isinstance(v, bool) and v >= 0,
+          "count": lambda v: isinstance(v, int) and not isinstance(v, bool) and v >= 1,
+          "number": lambda v: isinstance(v, (int, float)) and not isinstance(v, bool),
+          "string": lambda v: isinstance(v, str),
+          "object": lambda v: isinstance(v, dict),
+          "array": lambda v: isinstance(v, list),
+          "bool": lambda v: isinstance(v, bool)}
 
 
 class GltfFile:
@@ -104,12 +112,13 @@ class GltfFile:
                                  f"{raw[:4]!r} at the start")
             text = memoryview(raw)
         try:
-            doc = json.loads(bytes(text).decode("utf-8"), parse_constant=_no_constant)
-        except (ValueError, UnicodeDecodeError) as exc:
+            # the safe loader: no NaN, infinities (1e999) or 5000-digit integers, which
+            # a copy written back could not hold, and no nesting deep enough to crash
+            doc = load_json(bytes(text), "", what="glTF JSON")
+        except ValueError as exc:
+            msg = " ".join(str(exc).split()).lstrip(":, ")
             raise self.error("a glTF 2.0 file (JSON .gltf or binary .glb)",
-                             f"unreadable JSON ({' '.join(str(exc).split())[:120]})") from None
-        except RecursionError:
-            raise self.error("a glTF 2.0 JSON document", "JSON nested too deeply") from None
+                             f"unreadable JSON ({msg[:160]})") from None
         if not isinstance(doc, dict):
             raise self.error("a glTF 2.0 JSON object", f"a JSON {type(doc).__name__}")
         asset = doc.get("asset")
@@ -195,14 +204,7 @@ class GltfFile:
                 raise self.error(f"{where}.{key}", "none")
             return default
         x = obj[key]
-        ok = {"index": lambda v: isinstance(v, int) and not isinstance(v, bool) and v >= 0
-                                 and (below is None or v < below),
-              "count": lambda v: isinstance(v, int) and not isinstance(v, bool) and v >= 1,
-              "number": lambda v: isinstance(v, (int, float)) and not isinstance(v, bool),
-              "string": lambda v: isinstance(v, str),
-              "object": lambda v: isinstance(v, dict),
-              "array": lambda v: isinstance(v, list),
-              "bool": lambda v: isinstance(v, bool)}[kind](x)
+        ok = _KINDS[kind](x) and (kind != "index" or below is None or x < below)
         if not ok:
             want = {"index": "an index >= 0" + (f" below {below}" if below is not None else ""),
                     "count": "an integer >= 1", "number": "a number", "string": "a string",
@@ -282,9 +284,13 @@ class GltfFile:
                                  f"one of {max(have, 0)} bytes")
             need = -(-length // 3) * 4
             try:
-                return base64.b64decode(body[:need], validate=True)[:length]
+                data = base64.b64decode(body[:need], validate=True)[:length]
             except (binascii.Error, ValueError):
                 raise self.error(f"{where}: base64 data", "invalid characters") from None
+            if len(data) < length:
+                raise self.error(f"{where}: a data: URI of {length} bytes (its byteLength)",
+                                 f"one of {len(data)} bytes")
+            return data
         if len(body) < length:      # percent-encoded: at least one character per byte
             raise self.error(f"{where}: a data: URI of {length} bytes (its byteLength)",
                              f"one of {len(body)} characters")

@@ -60,16 +60,21 @@ def _merge_buffers(f: GltfFile, doc: dict) -> AccessorWriter:
     the external PNG/JPEG images; unused buffers are dropped unopened."""
     blob = AccessorWriter()
     base: dict[int, int] = {}
+    f.items("bufferViews")                         # checked: an array
     views = doc.get("bufferViews", [])
-    for v in views:
-        k = v.get("buffer")
+    for i, v in enumerate(views):
+        where = f"bufferViews[{i}]"
+        f.item("bufferViews", i, where)            # checked: an object
+        k = f.get(v, "buffer", "index", where)
+        offset = f.get(v, "byteOffset", "index", where, 0)
         if k not in base:
             blob.data.extend(b"\0" * (-len(blob.data) % 16))    # keeps every alignment
             base[k] = len(blob.data)
             blob.data.extend(f.buffer(k))
         v["buffer"] = 0
-        v["byteOffset"] = base[k] + v.get("byteOffset", 0)
+        v["byteOffset"] = base[k] + offset
     blob.view_base = len(views)
+    f.items("images")
     for i, img in enumerate(doc.get("images", [])):
         uri = img.get("uri") if isinstance(img, dict) else None
         if not isinstance(uri, str) or uri.startswith("data:"):

@@ -46,6 +46,7 @@ How a glTF character becomes a rig
 
 from __future__ import annotations
 
+import contextlib
 import os
 import warnings
 from collections.abc import Iterator, Mapping
@@ -56,7 +57,14 @@ from ...clip import Clip
 from ...rig.joints import rig_from_joints
 from ...rig.model import Rig
 from .._parse import suffix
-from .accessors import UBYTE, USHORT, read_accessor
+from .accessors import (
+    FLOAT_ONLY,
+    JOINT_INDICES,
+    QUANTIZED,
+    UNIT,
+    VERTEX_INDICES,
+    read_accessor,
+)
 from .animation import Joints, animation_names, decode_clip
 from .bones import read_bone_table
 from .container import GltfFile
@@ -65,8 +73,21 @@ from .scene import Scene
 __all__ = ["read_gltf", "GLTF_EXTENSIONS", "GltfAnimations", "primitive_weights"]
 
 GLTF_EXTENSIONS = (".gltf", ".glb")
+#: Vertex and joint positions (after the file's transforms) may be this large at most.
+MAX_COORDINATE = 1e12
 # Extensions without which the geometry cannot be read.
 _UNSUPPORTED = ("KHR_draco_mesh_compression", "EXT_meshopt_compression")
+
+
+@contextlib.contextmanager
+def _numeric(f: GltfFile, what: str) -> Iterator[None]:
+    """Linear algebra that fails on what a file holds (an SVD that does not converge,
+    a singular matrix) as a FormatError naming the file, not NumPy's bare message."""
+    try:
+        yield
+    except np.linalg.LinAlgError as exc:
+        raise f.error(f"{what}: transforms that linear algebra can work with",
+                      f"{' '.join(str(exc).split())} (values too large or degenerate)") from None
 
 
 class GltfAnimations(Mapping):
@@ -87,7 +108,8 @@ class GltfAnimations(Mapping):
                 a = self._names.index(name)
             except ValueError:
                 raise KeyError(name) from None
-            self._clips[name] = decode_clip(self._f, self._scene, self._joints, a, name)
+            with _numeric(self._f, f"animation {a} ({name!r})"):
+                self._clips[name] = decode_clip(self._f, self._scene, self._joints, a, name)
         return self._clips[name]
 
     def __iter__(self) -> Iterator[str]:
@@ -160,11 +182,20 @@ def _select(f: GltfFile, scene: Scene, skin, mesh) -> list[tuple[int, int, int]]
 
 
 # ---------------------------------------------------------------------- geometry
+def _positions(f: GltfFile) -> frozenset:
+    """What POSITION (and a morph target's offsets) may hold: floats, and with the
+    extension KHR_mesh_quantization the byte and short types too."""
+    used = (f.get(f.doc, "extensionsUsed", "array", "glTF", [])
+            + f.get(f.doc, "extensionsRequired", "array", "glTF", []))
+    return QUANTIZED if "KHR_mesh_quantization" in used else FLOAT_ONLY
+
+
 def _triangles(f: GltfFile, prim: dict, what: str, n: int) -> np.ndarray | None:
     mode = f.get(prim, "mode", "index", what, 4)
     i = f.get(prim, "indices", "index", what, None)
     idx = (np.arange(n) if i is None else
-           read_accessor(f, i, f"{what} indices", floats=False, types=("SCALAR",))[:, 0])
+           read_accessor(f, i, f"{what} indices", floats=False, types=("SCALAR",),
+                         components=VERTEX_INDICES)[:, 0])
     if idx.size and (idx.min() < 0 or idx.max() >= n):
         raise f.error(f"{what} indices below its {n} vertices", str(int(idx.max())))
     if mode == 4:
@@ -193,7 +224,7 @@ def _morphed(f: GltfFile, prim: dict, node: dict, mesh: dict, V: np.ndarray, wha
     for t, (tgt, wt) in enumerate(zip(targets, w, strict=True)):
         if wt and isinstance(tgt, dict) and "POSITION" in tgt:
             d = read_accessor(f, tgt["POSITION"], f"{what} target {t} POSITION",
-                              types=("VEC3",))
+                              types=("VEC3",), components=_positions(f))
             if d.shape != V.shape:
                 raise f.error(f"{what} target {t}: {len(V)} POSITION offsets", str(len(d)))
             V += float(wt) * d
@@ -210,11 +241,9 @@ def _weight_sets(f: GltfFile, at: dict, n: int, nj: int, what: str):
             break
         if ja is None or wa is None:
             raise f.error(f"{what}: JOINTS_{k} and WEIGHTS_{k} together", "only one of them")
-        J = read_accessor(f, ja, f"{what} JOINTS_{k}", floats=False, types=("VEC4",))
-        ct = f.items("accessors")[ja].get("componentType")
-        if ct not in (UBYTE, USHORT):
-            raise f.error(f"{what} JOINTS_{k}: unsigned byte or short joints", str(ct))
-        W = read_accessor(f, wa, f"{what} WEIGHTS_{k}", types=("VEC4",))
+        J = read_accessor(f, ja, f"{what} JOINTS_{k}", floats=False, types=("VEC4",),
+                          components=JOINT_INDICES)
+        W = read_accessor(f, wa, f"{what} WEIGHTS_{k}", types=("VEC4",), components=UNIT)
         if len(J) != n or len(W) != n:
             raise f.error(f"{what}: JOINTS_{k}/WEIGHTS_{k} of {n} vertices",
                           f"{len(J)} and {len(W)}")
@@ -227,7 +256,8 @@ def _weight_sets(f: GltfFile, at: dict, n: int, nj: int, what: str):
         E = None
         ea = at.get(f"_ENDPOINT_WEIGHTS_{k}")
         if ea is not None:
-            E = read_accessor(f, ea, f"{what} _ENDPOINT_WEIGHTS_{k}", types=("VEC4",))
+            E = read_accessor(f, ea, f"{what} _ENDPOINT_WEIGHTS_{k}", types=("VEC4",),
+                              components=UNIT)
             if len(E) != n or E.min(initial=0) < 0 or E.max(initial=0) > 1:
                 raise f.error(f"{what} _ENDPOINT_WEIGHTS_{k}: {n} values in [0, 1]",
                               f"{len(E)}, in [{E.min():.3g}, {E.max():.3g}]")
@@ -293,7 +323,8 @@ def _primitives(f: GltfFile, node: int, m: int):
         at = f.get(prim, "attributes", "object", what)
         if "POSITION" not in at:
             raise f.error(f"{what}: a POSITION attribute", "none")
-        V = read_accessor(f, at["POSITION"], f"{what} POSITION", types=("VEC3",))
+        V = read_accessor(f, at["POSITION"], f"{what} POSITION", types=("VEC3",),
+                          components=_positions(f))
         F = _triangles(f, prim, what, len(V))
         if F is None:
             # stacklevel: this generator, _read, read_gltf, its caller
@@ -417,20 +448,31 @@ def _read(f: GltfFile, skin, mesh, rigid: bool = True) -> tuple[Rig, Scene, Join
     # rigid bones: the rig is then moved by Y, the root's skin matrix at rest (a
     # similarity of scale c), into the space the file draws it in; the file's skin is
     # unchanged: G_j IBM_j v = (G_j IBM_j Y^-1)(Y v).
-    M0 = scene.world()[nodes] @ IBM
+    with np.errstate(over="ignore", invalid="ignore"):
+        M0 = scene.finite_world(nodes) @ IBM
+    if not np.isfinite(M0).all():
+        raise f.error("skin matrices at rest (joint transforms times inverse bind matrices) "
+                      "that are finite", "an overflow (transforms too large)")
     sv = np.linalg.svd(M0[:, :3, :3], compute_uv=False)
-    c = float(np.exp(np.log(sv).mean()))
+    # (a joint scaled to nothing at rest, which a file may hold, scales by no one factor)
+    c = float(np.exp(np.log(sv).mean())) if sv.min() > 0 else 0.0
+    uniform = c > 0 and np.abs(sv / max(c, 1e-300) - 1).max() <= 1e-4
     # The same holds when every joint's skin matrix at rest is one and the same rigid
     # motion (a bind made in Z-up space under a node turning it Y-up): the rig is put
     # where the file draws its rest pose, so a rest pose is upright as the file shows it.
     Y = M0[int(np.flatnonzero(parent < 0)[0])]
     rel = np.abs(M0 - Y).max() / max(float(np.abs(Y[:3, 3]).max()), 1.0)
-    same = rel <= 1e-5 and np.abs(sv / c - 1).max() <= 1e-4
-    if (abs(c - 1) > 1e-4 and np.abs(sv / c - 1).max() <= 1e-4) or (
-            same and np.abs(Y - np.eye(4)).max() > 1e-6):
+    same = rel <= 1e-5 and uniform
+    if (abs(c - 1) > 1e-4 and uniform) or (same and np.abs(Y - np.eye(4)).max() > 1e-6):
         V = V @ Y[:3, :3].T + Y[:3, 3]
         IBM = IBM @ np.linalg.inv(Y)
         bind = Y @ bind
+    # far beyond any real model (a planet in millimetres), and small enough that the
+    # skeleton's geometry (squared distances, cross products) cannot overflow
+    big = max(float(np.abs(V).max(initial=0)), float(np.abs(bind[:, :3, 3]).max()))
+    if not big <= MAX_COORDINATE:
+        raise f.error(f"vertex and joint positions of magnitude at most {MAX_COORDINATE:g}",
+                      f"{big:g} (transforms too large)")
     names = _names(scene, nodes)
     meta = {"gltf": {"file": f.path.name, "skins": [int(s) for s in skins],
                      "joints": [int(j) for j in nodes], "primitives": prims,
@@ -510,5 +552,6 @@ def read_gltf(path: str | os.PathLike, *, skin: int | str | None = None,
         raise TypeError(f"rigid must be True or False, got {rigid!r}")
     suffix(path, GLTF_EXTENSIONS, "read_gltf")
     f = GltfFile(path)
-    rig, scene, joints = _read(f, skin, mesh, bool(rigid))
+    with _numeric(f, "the skeleton and meshes"):
+        rig, scene, joints = _read(f, skin, mesh, bool(rigid))
     return rig, GltfAnimations(f, scene, joints)

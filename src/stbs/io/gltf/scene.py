@@ -13,7 +13,7 @@ import numpy as np
 
 from ... import transforms as tf
 from ...rig.joints import rigid_parts as polar
-from .accessors import read_accessor
+from .accessors import FLOAT_ONLY, read_accessor
 from .container import GltfFile
 
 __all__ = ["Scene", "trs_matrices", "polar"]
@@ -84,32 +84,42 @@ class Scene:
                 is_matrix[k] = True
                 T[k], Q[k], S[k] = self._split(M, where)
             else:
-                t = f.numbers(node, "translation", 3, where, (0, 0, 0))
-                r = f.numbers(node, "rotation", 4, where, (0, 0, 0, 1))
-                s = f.numbers(node, "scale", 3, where, (1, 1, 1))
-                q = np.array([r[3], r[0], r[1], r[2]])
-                nq = np.linalg.norm(q)
-                if not (np.isfinite(q).all() and np.isfinite(t).all() and np.isfinite(s).all()
-                        and nq > 0):
-                    raise f.error(f"{where}: a finite translation, a non-zero rotation and a "
-                                  "finite scale", f"{t}, {r}, {s}")
-                T[k], Q[k], S[k] = t, q / nq, s
-                local[k] = trs_matrices(T[k], Q[k], S[k])
-        # a cycle never reaches a root: walk up from every node, at most n steps
+                T[k] = f.numbers(node, "translation", 3, where, (0, 0, 0))
+                x, y, z, w = f.numbers(node, "rotation", 4, where, (0, 0, 0, 1))
+                Q[k] = w, x, y, z
+                S[k] = f.numbers(node, "scale", 3, where, (1, 1, 1))
+        # the nodes given by translation, rotation and scale, all at once
+        trs = np.flatnonzero(~is_matrix)
+        big = np.abs(Q[trs]).max(axis=1)
+        bad = ~(np.isfinite(T[trs]).all(axis=1) & np.isfinite(S[trs]).all(axis=1)
+                & np.isfinite(big) & (big > 0))
+        if bad.any():
+            k = int(trs[np.flatnonzero(bad)[0]])
+            raise f.error(f"nodes[{k}]: a finite translation, a non-zero rotation and a "
+                          "finite scale", f"{T[k].tolist()}, {Q[k, [1, 2, 3, 0]].tolist()}, "
+                          f"{S[k].tolist()}"[:200])
+        q = Q[trs] / big[:, None]               # then the norm cannot overflow
+        Q[trs] = q / np.linalg.norm(q, axis=1, keepdims=True)
+        local[trs] = trs_matrices(T[trs], Q[trs], S[trs])
+        # a cycle never reaches a root: walk up from every node until a node whose
+        # depth is known, a root, or a node met before on this walk (a cycle); each
+        # node's depth is set once, so the walks take O(n) in all
         depth = np.full(n, -1, dtype=np.int64)
         for k in range(n):
-            chain = []
+            chain: list[int] = []
+            met: dict[int, int] = {}
             x = k
             while x >= 0 and depth[x] < 0:
-                chain.append(x)
-                if len(chain) > n:
+                if x in met:
                     # the loop, parent before child, from its smallest node
-                    loop = chain[chain.index(x):-1][::-1]
+                    loop = chain[met[x]:][::-1]
                     m = loop.index(min(loop))
                     loop = loop[m:] + loop[:m]
                     shown = " -> ".join(map(str, loop[:8])) + (" ..." if len(loop) > 8 else "")
                     raise f.error("a tree of nodes (no cycles)",
                                   f"a cycle through nodes {shown} -> {loop[0]}")
+                met[x] = len(chain)
+                chain.append(x)
                 x = int(parent[x])
             base = -1 if x < 0 else depth[x]
             for m, c in enumerate(reversed(chain)):
@@ -126,7 +136,11 @@ class Scene:
         shear or a projective row: such a node can still be drawn, not animated)."""
         t = M[:3, 3].copy()
         A = M[:3, :3]
-        s = np.linalg.norm(A, axis=0)
+        big = np.abs(A).max()
+        s = big * np.linalg.norm(A / big, axis=0) if big > 0 else np.zeros(3)
+        if not np.isfinite(s).all():
+            raise self.f.error(f"{where}.matrix: a transform of finite scale",
+                               f"columns of length {s.tolist()}")
         if np.any(s == 0):
             return t, np.array([1.0, 0, 0, 0]), s
         R = A / s
@@ -136,15 +150,28 @@ class Scene:
 
     # ------------------------------------------------------------------ hierarchy
     def world(self) -> np.ndarray:
-        """(n, 4, 4) rest world matrices."""
+        """(n, 4, 4) rest world matrices (where a product of huge transforms overflows:
+        not finite; see :meth:`finite_world`)."""
         if self._world is None:
             G = self.local.copy()
-            for k in self.order:
-                p = self.parent[k]
-                if p >= 0:
-                    G[k] = G[p] @ self.local[k]
+            with np.errstate(over="ignore", invalid="ignore"):
+                for k in self.order:
+                    p = self.parent[k]
+                    if p >= 0:
+                        G[k] = G[p] @ self.local[k]
             self._world = G
         return self._world
+
+    def finite_world(self, nodes) -> np.ndarray:
+        """The rest world matrices of ``nodes``, checked finite (a chain of huge
+        transforms overflows)."""
+        G = self.world()[nodes]
+        bad = ~np.isfinite(G).all(axis=(1, 2))
+        if bad.any():
+            k = int(np.asarray(nodes)[np.flatnonzero(bad)[0]])
+            raise self.f.error(f"nodes[{k}]: a rest transform whose product with its "
+                               "parents' is finite", "an overflow (transforms too large)")
+        return G
 
     def ancestors(self, k: int) -> list[int]:
         """Nodes above ``k``, nearest first."""
@@ -237,7 +264,8 @@ class Scene:
         i = f.get(skin, "inverseBindMatrices", "index", f"skins[{s}]", None)
         if i is None:
             return np.tile(np.eye(4), (len(joints), 1, 1))
-        m = read_accessor(f, i, f"skin {s} inverseBindMatrices", types=("MAT4",))
+        m = read_accessor(f, i, f"skin {s} inverseBindMatrices", types=("MAT4",),
+                          components=FLOAT_ONLY)
         if len(m) != len(joints):
             raise f.error(f"skins[{s}]: {len(joints)} inverse bind matrices (one per joint)",
                           f"{len(m)}")

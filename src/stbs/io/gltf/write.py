@@ -114,7 +114,7 @@ def save_gltf_document(path: str | os.PathLike, doc: dict, data: bytes) -> None:
         doc["buffers"] = [{"byteLength": len(data), "uri": "data:application/octet-stream;"
                            "base64," + base64.b64encode(data).decode()}]
         with atomic_open(path, "w", encoding="utf-8") as f:
-            json.dump(doc, f)
+            json.dump(doc, f, allow_nan=False)
 
 
 def _check_clip(clip, rig: Rig):
