@@ -2,6 +2,7 @@
 # Needs only Python 3.11, git, make and Node (Debian bookworm); the rest is installed
 # here: the Python packages into .venv, the viewer's npm packages into viewer/, and the
 # system libraries and Chromium with apt-get when missing.
+# make test runs the fuzz suite's short profile, make fuzz its long one (about 10 minutes).
 PY ?= python3
 VENV := .venv
 BIN := $(VENV)/bin
@@ -14,7 +15,7 @@ VIEWER_JS := src/stbs/viewer/static/viewer.js
 # The peer page's bundle for stbs bench --viewer (three.js's SkinnedMesh), built the same way.
 THREE_LBS_JS := src/stbs/viewer/static/three-lbs.js
 
-.PHONY: demo test pytest wheel-check lint bench bench-igl bench-bbw install install-test clean
+.PHONY: demo test pytest fuzz wheel-check lint bench bench-igl bench-bbw install install-test clean
 
 $(BIN)/python:
 	$(PY) -m venv $(VENV)
@@ -94,6 +95,11 @@ test: install-test lint
 
 pytest: install-test
 	$(BIN)/python -m pytest -q --durations=20
+
+# The fuzz suite's long profile (docs/dev/testing.md, "Fuzzing"): mutated files through
+# the real commands for STBS_FUZZ_SECONDS seconds (default 600); it must find nothing.
+fuzz: install-test
+	STBS_FUZZ_SECONDS=$${STBS_FUZZ_SECONDS:-600} $(BIN)/python -m pytest -q -s tests/fuzz
 
 # Build the sdist and, from it, the wheel (python -m build: a clean, isolated build,
 # so a file the sdist or the wheel lacks shows up here), install the wheel into a

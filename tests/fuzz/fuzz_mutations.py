@@ -1,0 +1,729 @@
+"""Mutations of the files stbs reads, as Hypothesis strategies.
+
+A mutation is a tuple ``(op, *args)``: drawn by a strategy, shown as it is in a
+failure report, applied by a function here to a seed file's content. Positions and
+indices are drawn as plain integers and taken modulo what the file holds when the
+mutation is applied, so every mutation fits every seed and shrinks well.
+
+- :func:`byte_ops`: flips, insertions, deletions, truncation, duplicated ranges and
+  interesting bytes, on any file;
+- :func:`json_ops`: structure-aware edits of a JSON document (a value replaced by a
+  huge, negative, non-finite, huge-integer, deeply nested or wrongly typed one; keys
+  deleted; entries duplicated; indices moved out of range; lists grown);
+- :func:`gltf_ops`: the glTF ones on top (buffer and image URIs leading to the canary
+  file by absolute paths, ``../``, percent-encoding, ``file:`` and symbolic links;
+  accessor data overwritten with NaN and huge values; strides, component types,
+  counts; node cycles; empty skins, meshes and primitives; GLB headers and chunks);
+- :func:`bvh_ops`: BVH-aware edits (frame counts and times, channel counts, deep and
+  wide hierarchies, huge and malformed numbers, rows cut or grown).
+
+The JSON serializer writes :class:`Raw` values as their text, so a document can hold
+what JSON cannot (``NaN``, ``1e999``, a 5000-digit integer, nesting 10000 deep).
+"""
+
+from __future__ import annotations
+
+import base64
+import copy
+import json
+import struct
+from dataclasses import dataclass, field
+
+import numpy as np
+from hypothesis import strategies as st
+
+
+@dataclass(frozen=True)
+class Raw:
+    """A value written into JSON as this text, unquoted."""
+
+    text: str
+
+    def __repr__(self) -> str:
+        t = self.text
+        return f"Raw({t[:24] + '...' + t[-8:] if len(t) > 40 else t!r}, {len(t)} chars)"
+
+
+def dumps(doc) -> str:
+    """``doc`` as JSON text, each :class:`Raw` value as its text."""
+    raws: list[str] = []
+
+    def enc(x):
+        if isinstance(x, Raw):
+            raws.append(x.text)
+            return f"\0RAW{len(raws) - 1}\0"
+        if isinstance(x, dict):
+            return {k: enc(v) for k, v in x.items()}
+        if isinstance(x, list):
+            return [enc(v) for v in x]
+        if isinstance(x, float) and not np.isfinite(x):
+            return enc(Raw("NaN" if x != x else ("Infinity" if x > 0 else "-Infinity")))
+        return x
+
+    text = json.dumps(enc(doc), separators=(",", ":"))
+    for k, r in enumerate(raws):
+        text = text.replace(f'"\\u0000RAW{k}\\u0000"', r)
+    return text
+
+
+# ----------------------------------------------------------------------------- values
+HUGE_INTS = [2**31 - 1, 2**31, 2**32, 2**32 + 1, 2**53 + 1, 2**63, 2**64 + 7, 10**20,
+             -(2**31), -1, 400_000_000]
+SMALL_INTS = [0, 1, 2, 3, 4, 5, 7, 8, 12, 16, 252, 253, 255, 256, 65535, 65536]
+FLOATS = [0.0, -0.0, 0.5, -1.5, 1e-320, 1e-45, 3.4e38, -3.4e38, 1e308, -1e308, 1e30]
+RAWS = [Raw("NaN"), Raw("Infinity"), Raw("-Infinity"), Raw("1e999"), Raw("-1e999"),
+        Raw("9" * 400), Raw("1" + "0" * 5000), Raw("-" + "7" * 30), Raw("1E400"),
+        Raw("[" * 70 + "1" + "]" * 70), Raw("[" * 10000 + "]" * 10000),
+        Raw('{"a":' * 3000 + "1" + "}" * 3000)]
+STRINGS = ["", "x", "NaN", "-1", "1e999", "0x10", "../../secret", "\u0000", "é",
+           "A" * 5000, "node1", "0", "99999", " ", "%2e%2e"]
+OTHERS = [None, True, False, [], {}, [[]], [None], {"": None}, [0] * 20,
+          list(range(1000)), [1e308] * 16, [Raw("NaN")] * 16]
+
+
+def hostile_values() -> st.SearchStrategy:
+    """A value of the wrong size, sign, finiteness, type or depth."""
+    return st.one_of(st.sampled_from(HUGE_INTS + SMALL_INTS), st.sampled_from(FLOATS),
+                     st.sampled_from(RAWS), st.sampled_from(STRINGS),
+                     st.sampled_from(OTHERS), st.integers(-3, 70))
+
+
+# ----------------------------------------------------------------------------- bytes
+INTERESTING = [b"\x00", b"\xff", b"\x00\x00\x00\x00", b"\xff\xff\xff\x7f", b"\xff\xff\xff\xff",
+               b"\x00\x00\xc0\x7f", b"\x00\x00\x80\x7f", b"\xff\xff\x7f\x7f", b"NaN", b"-",
+               b"9" * 30, b'"', b"{", b"}", b"[", b"]", b",", b"\\u0000", b"\xc3\x28",
+               b"\r\n", b"\t", b"1e999", b"\n}\n", b"glTF", b"JSON", b"BIN\x00"]
+
+
+def byte_ops(max_ops: int = 3) -> st.SearchStrategy:
+    """Byte-level mutations of any file."""
+    pos = st.integers(0, 2**31)
+    op = st.one_of(
+        st.tuples(st.just("flip"), pos, st.integers(0, 7)),
+        st.tuples(st.just("insert"), pos, st.sampled_from(INTERESTING)),
+        st.tuples(st.just("insert"), pos, st.binary(min_size=1, max_size=8)),
+        st.tuples(st.just("delete"), pos, st.integers(1, 64)),
+        st.tuples(st.just("truncate"), pos),
+        st.tuples(st.just("overwrite"), pos, st.sampled_from(INTERESTING)),
+        st.tuples(st.just("dup"), pos, st.integers(1, 256)),
+    )
+    return st.lists(op, min_size=1, max_size=max_ops)
+
+
+def apply_bytes(data: bytes, ops) -> bytes:
+    b = bytearray(data)
+    for op in ops:
+        kind, p = op[0], op[1] % (len(b) + 1)
+        if kind == "flip" and b:
+            b[p % len(b)] ^= 1 << op[2]
+        elif kind == "insert":
+            b[p:p] = op[2]
+        elif kind == "delete":
+            del b[p:p + op[2]]
+        elif kind == "truncate":
+            del b[p:]
+        elif kind == "overwrite":
+            b[p:p + len(op[2])] = op[2]
+        elif kind == "dup":
+            b[p:p] = b[p:p + op[2]]
+    return bytes(b)
+
+
+# ----------------------------------------------------------------------------- JSON
+def paths(doc) -> list[tuple]:
+    """Every place in a JSON document (the root excluded), parents before children."""
+    out: list[tuple] = []
+    stack = [((), doc)]
+    while stack:
+        p, x = stack.pop()
+        items = x.items() if isinstance(x, dict) else enumerate(x) if isinstance(x, list) \
+            else ()
+        for k, v in items:
+            out.append((*p, k))
+            if len(out) < 200_000:
+                stack.append(((*p, k), v))
+    out.sort(key=len)
+    return out
+
+
+def _get(doc, path):
+    for k in path:
+        doc = doc[k]
+    return doc
+
+
+def json_ops(max_ops: int = 3, values: st.SearchStrategy | None = None) -> st.SearchStrategy:
+    """Structure-aware edits of any JSON document."""
+    at = st.integers(0, 2**31)
+    values = values if values is not None else hostile_values()
+    op = st.one_of(
+        st.tuples(st.just("replace"), at, values),
+        st.tuples(st.just("delete"), at),
+        st.tuples(st.just("duplicate"), at),
+        st.tuples(st.just("copy"), at, at),
+        st.tuples(st.just("shift"), at, st.sampled_from([-2, -1, 1, 2, 1000, 2**31])),
+        st.tuples(st.just("grow"), at, st.sampled_from([2, 10, 1000, 20000])),
+    )
+    return st.lists(op, min_size=1, max_size=max_ops)
+
+
+def apply_json(doc, ops):
+    """``doc`` (a parsed JSON document, copied) with ``ops`` applied."""
+    doc = copy.deepcopy(doc)
+    for op in ops:
+        ps = paths(doc)
+        if not ps:
+            break
+        p = ps[op[1] % len(ps)]
+        parent, key = _get(doc, p[:-1]), p[-1]
+        kind = op[0]
+        if kind == "replace":
+            parent[key] = copy.deepcopy(op[2])
+        elif kind == "delete":
+            del parent[key]
+        elif kind == "duplicate" and isinstance(parent, list):
+            parent.insert(key, copy.deepcopy(parent[key]))
+        elif kind == "duplicate" and isinstance(parent[key], list) and parent[key]:
+            parent[key].append(copy.deepcopy(parent[key][-1]))
+        elif kind == "copy":
+            src = ps[op[2] % len(ps)]
+            if src[:len(p)] != p:
+                parent[key] = copy.deepcopy(_get(doc, src))
+        elif kind == "shift":
+            v = parent[key]
+            if isinstance(v, (int, float)) and not isinstance(v, bool):
+                parent[key] = v + op[2]
+        elif kind == "grow":
+            v = parent[key]
+            if isinstance(v, list) and v:
+                parent[key] = (v * (op[2] // len(v) + 1))[:max(op[2], len(v))]
+            elif isinstance(v, str):
+                parent[key] = (v or "x") * op[2]
+    return doc
+
+
+# ----------------------------------------------------------------------------- glTF
+#: URIs leading out of the case folder to the canary (``CANARY`` is replaced by the
+#: canary's absolute path, ``SECRET`` by its name, ``UP`` by the ``../`` to its folder),
+#: and other hostile ones.
+URIS = ["CANARY", "UP/SECRET", "UP%2fSECRET", "%2e%2e/%2e%2e/SECRET", "%2E%2E%2F%2E%2E%2FSECRET",
+        "file://CANARY", "file:CANARY", "FILE:///etc/passwd", "/etc/passwd", "/proc/self/environ",
+        "link.bin", "linkdir/SECRET", "sub/../UP/SECRET", "..\\..\\SECRET", "C:\\x.bin",
+        "http://127.0.0.1:9/x.bin", "data:application/octet-stream;base64,!!!!AAAA",
+        "data:application/octet-stream;base64,AAAA AAAA\nAAAA", "data:,abc", "data:",
+        "data:application/octet-stream;base64,AAA", "data:;base64,====", "",
+        "missing.bin", ".", "./", "%00", "buf.bin%00.png", "\u00e9.bin"]
+
+_SECTIONS = {
+    "accessors": ["bufferView", "byteOffset", "componentType", "count", "type", "normalized",
+                  "sparse", "min", "max"],
+    "bufferViews": ["buffer", "byteOffset", "byteLength", "byteStride", "target"],
+    "buffers": ["byteLength", "uri"],
+    "nodes": ["children", "matrix", "translation", "rotation", "scale", "mesh", "skin",
+              "weights", "name", "camera"],
+    "skins": ["joints", "inverseBindMatrices", "skeleton", "extras", "name"],
+    "meshes": ["primitives", "weights", "name"],
+    "animations": ["samplers", "channels", "name"],
+    "scenes": ["nodes"],
+    "images": ["uri", "bufferView", "mimeType"],
+}
+_SPECIAL = {
+    "componentType": [5120, 5121, 5122, 5123, 5124, 5125, 5126, 5130, 0, 1],
+    "type": ["SCALAR", "VEC2", "VEC3", "VEC4", "MAT2", "MAT3", "MAT4", "MAT5", "vec3", ""],
+    "byteStride": [0, 1, 2, 3, 4, 5, 6, 8, 11, 12, 13, 16, 20, 64, 252, 253, 256, 4096],
+    "count": [1, 2, 3, 4, 400_000_000, 2**31, 2**32 + 1, 10**15, 0, -1],
+    "matrix": [[Raw("NaN")] * 16, [1e308] * 16, [0.0] * 16, [3.4e38] * 16,
+               [1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 0], [1.0] * 16, [1e-300] * 16,
+               [1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 1e308, 1e308, 1e308, 1]],
+    "rotation": [[0, 0, 0, 0], [1e308, 1e308, 0, 0], [Raw("NaN")] * 4, [0, 0, 0, 1e-300],
+                 [1e-320, 0, 0, 0]],
+    "scale": [[0, 0, 0], [1e308, 1e308, 1e308], [-1, 1, 1], [1e-300] * 3, [0, 1, 1]],
+    "translation": [[1e308, -1e308, 0], [3.4e38] * 3, [Raw("1e999"), 0, 0]],
+    "joints": [[], [0], [0, 0], [0, 1, 0], list(range(300)), [-1], [2**31]],
+    "primitives": [[], [{}], [{"attributes": {}}], [{"attributes": {"POSITION": 0}}]],
+    "sparse": [{"count": 1, "indices": {"bufferView": 0, "componentType": 5125},
+                "values": {"bufferView": 0}},
+               {"count": 2**31, "indices": {"bufferView": 0, "componentType": 5121},
+                "values": {"bufferView": 0}}],
+    "mode": [0, 1, 2, 3, 4, 5, 6, 7, -1],
+    "interpolation": ["LINEAR", "STEP", "CUBICSPLINE", "linear", ""],
+    "path": ["translation", "rotation", "scale", "weights", "pointer", ""],
+}
+ATTRIBUTES = ["POSITION", "NORMAL", "JOINTS_0", "WEIGHTS_0", "JOINTS_1", "WEIGHTS_1",
+              "_ENDPOINT_WEIGHTS_0", "TEXCOORD_0"]
+#: 4-byte patterns written over accessor data: NaN, infinity, the largest float, a
+#: denormal, -0, 0xffffffff, 0x80000000, 1.0
+PATTERNS = [b"\x00\x00\xc0\x7f", b"\x00\x00\x80\x7f", b"\xff\xff\x7f\x7f", b"\x01\x00\x00\x00",
+            b"\x00\x00\x00\x80", b"\xff\xff\xff\xff", b"\x00\x00\x00\x80"[::-1],
+            b"\x00\x00\x80\x3f", b"\x00\x00\x00\x00"]
+
+
+def _index_values() -> st.SearchStrategy:
+    return st.one_of(st.integers(-2, 40), st.sampled_from(HUGE_INTS))
+
+
+def gltf_ops(max_ops: int = 3) -> st.SearchStrategy:
+    """glTF-aware mutations (see the module docs)."""
+    i = st.integers(0, 2**16)
+    section = st.sampled_from(sorted(_SECTIONS))
+    value = st.one_of(hostile_values(), _index_values(),
+                      st.sampled_from([v for vs in _SPECIAL.values() for v in vs]))
+    op = st.one_of(
+        st.tuples(st.just("set"), section, i, i, value),
+        st.tuples(st.just("del"), section, i, i),
+        st.tuples(st.just("prim"), i, i, st.sampled_from(["indices", "mode", "targets",
+                                                          "attributes"]), value),
+        st.tuples(st.just("attr"), i, i, st.sampled_from(ATTRIBUTES), _index_values()),
+        st.tuples(st.just("sampler"), i, i, st.sampled_from(["input", "output",
+                                                             "interpolation"]), value),
+        st.tuples(st.just("target"), i, i, st.sampled_from(["node", "path"]), value),
+        st.tuples(st.just("uri"), st.sampled_from(["buffer", "image", "unused"]), i,
+                  st.sampled_from(URIS)),
+        st.tuples(st.just("fill"), i, st.sampled_from(PATTERNS), st.booleans()),
+        st.tuples(st.just("edge"), i, i),
+        st.tuples(st.just("empty"), st.sampled_from(["skins", "meshes", "nodes", "joints",
+                                                     "primitives", "accessors", "buffers",
+                                                     "animations", "scenes"]), i),
+        st.tuples(st.just("keys"), i, st.sampled_from([1, 2, 3, 1000, 20000])),
+        st.tuples(st.just("external"), st.booleans()),
+        st.tuples(st.just("glb"), st.sampled_from(["version0", "version1", "version3",
+                                                   "length+", "length-", "json-type",
+                                                   "bin-first", "two-bin", "bin-huge",
+                                                   "no-bin", "extra-chunk", "pad"])),
+    )
+    return st.lists(st.one_of(op, op, op, json_ops(1).map(lambda x: ("json", x[0]))),
+                    min_size=1, max_size=max_ops)
+
+
+@dataclass
+class Gltf:
+    """A glTF file taken apart: its JSON, its binary buffer, and how it is stored."""
+
+    doc: dict
+    bin: bytearray
+    glb: bool
+    external: str | None = None                    # buffer 0 in this file beside it
+    links: dict = field(default_factory=dict)      # name -> target path
+    header: list = field(default_factory=list)     # GLB tweaks, applied when packing
+
+    @classmethod
+    def parse(cls, data: bytes) -> Gltf:
+        if data[:4] == b"glTF":
+            n = struct.unpack_from("<I", data, 12)[0]
+            doc = json.loads(data[20:20 + n])
+            m = struct.unpack_from("<I", data, 20 + n)[0] if len(data) > 28 + n else 0
+            return cls(doc, bytearray(data[28 + n:28 + n + m]), True)
+        doc = json.loads(data)
+        uri = doc["buffers"][0]["uri"]
+        doc["buffers"][0]["uri"] = "@bin"          # written back from .bin when packing
+        return cls(doc, bytearray(base64.b64decode(uri.split(",", 1)[1])), False)
+
+    def pack(self) -> tuple[bytes, dict[str, bytes]]:
+        """The file's bytes, and the files beside it (name -> bytes)."""
+        files = {self.external: bytes(self.bin)} if self.external else {}
+        return self._pack(), files
+
+    def _pack(self) -> bytes:
+        doc = self.doc
+        bufs = doc.get("buffers")
+        if (isinstance(bufs, list) and bufs and isinstance(bufs[0], dict)
+                and bufs[0].get("uri") == "@bin"):
+            doc = dict(doc, buffers=[dict(bufs[0], uri="data:application/octet-stream;base64,"
+                                          + base64.b64encode(bytes(self.bin)).decode()),
+                                     *bufs[1:]])
+        if not self.glb:
+            return dumps(doc).encode("utf-8", "surrogatepass")
+        js = dumps(doc).encode("utf-8", "surrogatepass")
+        js += b" " * (-len(js) % 4)
+        blob = bytes(self.bin) + b"\0" * (-len(self.bin) % 4)
+        jc = struct.pack("<I4s", len(js), b"JSON") + js
+        bc = struct.pack("<I4s", len(blob), b"BIN\0") + blob
+        chunks = [jc, bc]
+        version = 2
+        delta = 0
+        for h in self.header:
+            if h.startswith("version"):
+                version = int(h[7:])
+            elif h == "length+":
+                delta = 1000
+            elif h == "length-":
+                delta = -8
+            elif h == "json-type":
+                chunks[0] = struct.pack("<I4s", len(js), b"JSOX") + js
+            elif h == "bin-first":
+                chunks = chunks[::-1]
+            elif h == "two-bin":
+                chunks.append(bc)
+            elif h == "bin-huge":
+                chunks[-1] = struct.pack("<I4s", 2**32 - 4, b"BIN\0") + blob
+            elif h == "no-bin":
+                chunks = chunks[:1]
+            elif h == "extra-chunk":
+                chunks.insert(1, struct.pack("<I4s", 4, b"XTRA") + b"abcd")
+            elif h == "pad":
+                chunks[0] = struct.pack("<I4s", len(js) + 3, b"JSON") + js + b"\0\0\0"
+        body = b"".join(chunks)
+        return struct.pack("<4sII", b"glTF", version, 12 + len(body) + delta) + body
+
+
+def _list(doc, name):
+    x = doc.get(name)
+    return x if isinstance(x, list) else None
+
+
+def _pick(doc, name, i):
+    x = _list(doc, name)
+    if not x:
+        return None
+    return x[i % len(x)]
+
+
+def _accessor_span(g: Gltf, a: dict):
+    """(start, length) in the binary buffer of an accessor's buffer view, or None."""
+    views = _list(g.doc, "bufferViews")
+    v = a.get("bufferView") if isinstance(a, dict) else None
+    if not views or not isinstance(v, int) or not 0 <= v < len(views):
+        return None
+    bv = views[v]
+    if not isinstance(bv, dict) or bv.get("buffer", 0) != 0:
+        return None
+    start = bv.get("byteOffset", 0)
+    n = bv.get("byteLength", 0)
+    if not isinstance(start, int) or not isinstance(n, int) or start < 0 or n < 0:
+        return None
+    return start, min(n, max(len(g.bin) - start, 0))
+
+
+def _uri(text: str, env: dict) -> str:
+    return (text.replace("CANARY", env["canary"]).replace("SECRET", env["secret"])
+            .replace("UP", env["up"]))
+
+
+def apply_gltf(g: Gltf, ops, env: dict) -> Gltf:
+    """``g`` (copied) with the glTF mutations ``ops`` applied; ``env`` names the canary
+    (``canary``: its absolute path, ``secret``: its name, ``up``: ``../`` from the
+    case folder to its folder)."""
+    g = Gltf(copy.deepcopy(g.doc), bytearray(g.bin), g.glb, g.external, dict(g.links),
+             list(g.header))
+    d = g.doc
+    for op in ops:
+        kind = op[0]
+        if kind == "json":
+            g.doc = d = apply_json(d, [op[1]])
+            if not isinstance(d, dict):
+                break
+        elif kind == "set":
+            x = _pick(d, op[1], op[2])
+            if isinstance(x, dict):
+                keys = _SECTIONS[op[1]]
+                x[keys[op[3] % len(keys)]] = copy.deepcopy(op[4])
+        elif kind == "del":
+            x = _pick(d, op[1], op[2])
+            keys = _SECTIONS[op[1]]
+            if isinstance(x, dict):
+                x.pop(keys[op[3] % len(keys)], None)
+        elif kind in ("prim", "attr"):
+            m = _pick(d, "meshes", op[1])
+            prims = m.get("primitives") if isinstance(m, dict) else None
+            if isinstance(prims, list) and prims and isinstance(prims[op[2] % len(prims)],
+                                                                dict):
+                p = prims[op[2] % len(prims)]
+                if kind == "prim":
+                    p[op[3]] = copy.deepcopy(op[4])
+                elif isinstance(p.get("attributes"), dict):
+                    p["attributes"][op[3]] = op[4]
+        elif kind in ("sampler", "target"):
+            a = _pick(d, "animations", op[1])
+            arr = a.get("samplers" if kind == "sampler" else "channels") \
+                if isinstance(a, dict) else None
+            if isinstance(arr, list) and arr and isinstance(arr[op[2] % len(arr)], dict):
+                x = arr[op[2] % len(arr)]
+                if kind == "target":
+                    x = x.setdefault("target", {}) if isinstance(x.get("target", {}), dict) \
+                        else x
+                x[op[3]] = copy.deepcopy(op[4])
+        elif kind == "uri":
+            uri = _uri(op[3], env)
+            if uri == "link.bin":
+                g.links["link.bin"] = env["canary"]
+            elif uri.startswith("linkdir/"):
+                g.links["linkdir"] = env["canary_dir"]
+            if op[1] == "buffer":
+                x = _pick(d, "buffers", op[2])
+                if isinstance(x, dict):
+                    x["uri"] = uri
+            elif op[1] == "image":
+                imgs = d.setdefault("images", [])
+                if isinstance(imgs, list):
+                    imgs.append({"uri": uri})
+            else:                               # a buffer nothing uses
+                bufs = d.setdefault("buffers", [])
+                if isinstance(bufs, list):
+                    bufs.append({"uri": uri, "byteLength": 64})
+        elif kind == "fill":
+            a = _pick(d, "accessors", op[1])
+            span = _accessor_span(g, a)
+            if span:
+                start, n = span
+                if op[3]:                                       # all of it
+                    g.bin[start:start + n] = (op[2] * (n // 4 + 1))[:n]
+                elif n >= 4:                                    # one value
+                    k = (op[1] * 4) % max(n - 3, 1)
+                    g.bin[start + k:start + k + 4] = op[2]
+        elif kind == "edge":
+            nodes = _list(d, "nodes")
+            if nodes:
+                a, b = nodes[op[1] % len(nodes)], op[2] % len(nodes)
+                if isinstance(a, dict):
+                    ch = a.setdefault("children", [])
+                    if isinstance(ch, list):
+                        ch.append(b)
+        elif kind == "empty":
+            what = op[1]
+            if what == "joints":
+                s = _pick(d, "skins", op[2])
+                if isinstance(s, dict):
+                    s["joints"] = []
+            elif what == "primitives":
+                m = _pick(d, "meshes", op[2])
+                if isinstance(m, dict):
+                    m["primitives"] = []
+            else:
+                d[what] = []
+        elif kind == "keys":
+            _more_keys(g, op[1], op[2])
+        elif kind == "external":
+            bufs = _list(d, "buffers")
+            if bufs and isinstance(bufs[0], dict):
+                g.external = "my buf.bin" if op[1] else "buf.bin"
+                bufs[0]["uri"] = "my%20buf.bin" if op[1] else "buf.bin"
+        elif kind == "glb":
+            g.header.append(op[1])
+    return g
+
+
+def _more_keys(g: Gltf, a: int, n: int) -> None:
+    """Give animation ``a``'s first sampler ``n`` keys (times 0, 1/30, ...; rotations
+    alternating about z), appended to the binary buffer."""
+    anim = _pick(g.doc, "animations", a)
+    views, accs = _list(g.doc, "bufferViews"), _list(g.doc, "accessors")
+    if not isinstance(anim, dict) or views is None or accs is None:
+        return
+    samplers, chans = anim.get("samplers"), anim.get("channels")
+    if not isinstance(samplers, list) or not samplers or not isinstance(chans, list):
+        return
+    t = (np.arange(n) / 30.0).astype("<f4")
+    q = np.tile(np.array([0, 0, 0, 1], "<f4"), (n, 1))
+    q[::2] = [0, 0, 1, 0]
+    ids = []
+    for arr, typ in ((t, "SCALAR"), (q, "VEC4")):
+        while len(g.bin) % 4:
+            g.bin.append(0)
+        views.append({"buffer": 0, "byteOffset": len(g.bin), "byteLength": arr.nbytes})
+        g.bin.extend(arr.tobytes())
+        accs.append({"bufferView": len(views) - 1, "componentType": 5126, "count": n,
+                     "type": typ})
+        ids.append(len(accs) - 1)
+    samplers[0] = {"input": ids[0], "output": ids[1], "interpolation": "LINEAR"}
+    for c in chans:
+        if isinstance(c, dict) and c.get("sampler") == 0 and isinstance(c.get("target"), dict):
+            c["target"]["path"] = "rotation"
+    bufs = _list(g.doc, "buffers")
+    if bufs and isinstance(bufs[0], dict):
+        bufs[0]["byteLength"] = len(g.bin)
+
+
+# ----------------------------------------------------------------------------- BVH
+BVH_NUMBERS = ["0", "-0", "1e308", "-1e308", "1e999", "nan", "NaN", "inf", "-inf", "1e-320",
+               "0x10", "1,5", "--1", "+-1", "9" * 400, "1e", ".", "", "1.2.3", "½"]
+
+
+def bvh_ops(max_ops: int = 3) -> st.SearchStrategy:
+    """BVH-aware mutations (see the module docs)."""
+    i = st.integers(0, 2**16)
+    op = st.one_of(
+        st.tuples(st.just("frames"), st.sampled_from(
+            ["0", "-1", "1", "4", "6", "50", "1000000000", str(2**63), "abc", "1e3", "", "5.5",
+             "99999999999999999999999"])),
+        st.tuples(st.just("frametime"), st.sampled_from(
+            ["0", "-0.01", "1e-300", "1e300", "nan", "inf", "", "1e999", "abc", "1e-9"])),
+        st.tuples(st.just("channels"), i, st.sampled_from(["0", "1", "2", "7", "-1", "1000000000",
+                                                           "x", "3 Xrotation", "6"])),
+        st.tuples(st.just("channel-name"), i, st.sampled_from(
+            ["Wrotation", "Xposition", "Xrotation", "", "Zscale", "xrotation"])),
+        st.tuples(st.just("deep"), i, st.sampled_from([2, 50, 200, 1000, 5000])),
+        st.tuples(st.just("wide"), i, st.sampled_from([2, 100, 3000])),
+        st.tuples(st.just("number"), i, i, st.sampled_from(BVH_NUMBERS)),
+        st.tuples(st.just("offset"), i, st.sampled_from(
+            ["0 0 0", "1e308 1e308 1e308", "nan 0 0", "1 2", "1 2 3 4", "3.4e38 0 0"])),
+        st.tuples(st.just("name"), i, st.sampled_from(["", "Hips", "LeftArm", "A" * 5000,
+                                                       "a b", "é", "{"])),
+        st.tuples(st.just("rows"), i, st.sampled_from(["cut", "dup", "extra", "short", "blank",
+                                                       "zeros", "huge"])),
+        st.tuples(st.just("line"), i, st.sampled_from(["del", "dup", "{", "}", "End Site",
+                                                       "ROOT x", "JOINT", "MOTION",
+                                                       "HIERARCHY", ""])),
+    )
+    # edits that keep the file readable, so that the cases reach retargeting and baking
+    keep = st.one_of(
+        st.tuples(st.just("resize"), st.sampled_from([1, 2, 3, 60, 1000])),
+        st.tuples(st.just("value"), i, i, st.sampled_from(
+            ["0", "1e5", "-1e5", "1e6", "-1e6", "720", "-359.99", "1e-300", "90", "180"])),
+        st.tuples(st.just("offset"), i, st.sampled_from(
+            ["0 0 0", "1e5 0 0", "1e-9 0 0", "0 -50 0", "1e6 1e6 1e6"])),
+        st.tuples(st.just("order"), i, st.permutations([0, 1, 2])),
+        st.tuples(st.just("drop"), i),
+        st.tuples(st.just("position"), i),
+        st.tuples(st.just("name"), i, st.sampled_from(
+            ["Hips", "LeftUpLeg", "RightArm", "Head", "Spine", "mixamorig:Hips", "pelvis",
+             "LeftHand", "Neck", "RightFoot", "root"])),
+    )
+    return st.lists(st.one_of(keep, keep, op), min_size=1, max_size=max_ops)
+
+
+def _channels(lines: list[str]) -> list[tuple[int, int]]:
+    """(line, first motion column) of each CHANNELS line, in file order."""
+    out, col = [], 0
+    for k, s in enumerate(lines):
+        parts = s.split()
+        if parts and parts[0].upper() == "CHANNELS":
+            out.append((k, col))
+            col += int(parts[1]) if len(parts) > 1 and parts[1].isdigit() else 0
+    return out
+
+
+def apply_bvh(text: str, ops) -> str:
+    """BVH text with ``ops`` applied (line-based; works on broken files too)."""
+    lines = text.splitlines()
+
+    def where(prefix):
+        return [k for k, s in enumerate(lines) if s.strip().split(" ")[0].startswith(prefix)]
+
+    for op in ops:
+        kind = op[0]
+        motion = (where("MOTION") or [len(lines)])[0]
+        rows = [r for r in range(motion + 3, len(lines)) if lines[r].strip()]
+        chans = _channels(lines)
+        if kind == "resize" and rows:
+            body = [lines[r] for r in rows]
+            body = (body * (op[1] // len(body) + 1))[:op[1]]
+            lines[motion + 3:] = body
+            for k in where("Frames:"):
+                lines[k] = f"Frames: {op[1]}"
+        elif kind == "value" and rows:
+            k = rows[op[1] % len(rows)]
+            parts = lines[k].split()
+            if parts:
+                parts[op[2] % len(parts)] = op[3]
+                lines[k] = " ".join(parts)
+        elif kind == "order" and chans:
+            k, _ = chans[op[1] % len(chans)]
+            parts = lines[k].split()
+            rot = [m for m, w in enumerate(parts) if w.lower().endswith("rotation")]
+            if len(rot) == 3:
+                names = [parts[m] for m in rot]
+                for m, perm in zip(rot, op[2], strict=True):
+                    parts[m] = names[perm]
+                lines[k] = " ".join(parts)
+        elif kind in ("drop", "position") and chans:
+            k, col = chans[op[1] % len(chans)]
+            parts = lines[k].split()
+            n = int(parts[1]) if len(parts) > 1 and parts[1].isdigit() else 0
+            for r in rows:
+                vals = lines[r].split()
+                if kind == "drop":
+                    del vals[col:col + n]
+                elif not any(w.lower().endswith("position") for w in parts):
+                    vals[col:col] = ["0", "0", "0"]
+                lines[r] = " ".join(vals)
+            if kind == "drop":
+                lines[k] = "CHANNELS 0"
+            elif not any(w.lower().endswith("position") for w in parts):
+                lines[k] = f"CHANNELS {n + 3} Xposition Yposition Zposition " + \
+                    " ".join(parts[2:])
+        elif kind == "frames":
+            for k in where("Frames:"):
+                lines[k] = f"Frames: {op[1]}"
+        elif kind == "frametime":
+            for k in [k for k, s in enumerate(lines) if s.strip().startswith("Frame Time")]:
+                lines[k] = f"Frame Time: {op[1]}"
+        elif kind in ("channels", "channel-name"):
+            ks = where("CHANNELS")
+            if ks:
+                k = ks[op[1] % len(ks)]
+                parts = lines[k].split()
+                if kind == "channels":
+                    lines[k] = f"CHANNELS {op[2]} " + " ".join(parts[2:])
+                elif len(parts) > 2:
+                    parts[2 + op[1] % (len(parts) - 2)] = op[2]
+                    lines[k] = " ".join(parts)
+        elif kind in ("deep", "wide"):
+            ks = where("End")
+            if ks:
+                k = ks[op[1] % len(ks)]
+                n = op[2]
+                if kind == "deep":
+                    block = []
+                    for m in range(n):
+                        block += [f"JOINT deep{m}", "{", "OFFSET 0 0.1 0",
+                                  "CHANNELS 3 Zrotation Xrotation Yrotation"]
+                    block += ["End Site", "{", "OFFSET 0 0.1 0", "}"] + ["}"] * n
+                    extra = 3 * n
+                else:
+                    block = []
+                    for m in range(n):
+                        block += [f"JOINT wide{m}", "{", "OFFSET 0 0.1 0",
+                                  "CHANNELS 3 Zrotation Xrotation Yrotation", "End Site",
+                                  "{", "OFFSET 0 0.1 0", "}", "}"]
+                    extra = 3 * n
+                # put the new joints before the End Site's block, in its parent
+                lines[k:k] = block
+                motion = (where("MOTION") or [len(lines)])[0]
+                for r in range(motion + 3, len(lines)):
+                    if lines[r].strip():
+                        lines[r] = lines[r] + " 0" * extra
+        elif kind == "number":
+            rows = [k for k in range(len(lines)) if any(c.isdigit() for c in lines[k])]
+            if rows:
+                k = rows[op[1] % len(rows)]
+                parts = lines[k].split()
+                nums = [m for m, s in enumerate(parts) if any(c.isdigit() for c in s)]
+                if nums:
+                    parts[nums[op[2] % len(nums)]] = op[3]
+                    lines[k] = " ".join(parts)
+        elif kind == "offset":
+            ks = where("OFFSET")
+            if ks:
+                lines[ks[op[1] % len(ks)]] = f"OFFSET {op[2]}"
+        elif kind == "name":
+            ks = where("JOINT") + where("ROOT")
+            if ks:
+                k = ks[op[1] % len(ks)]
+                lines[k] = f"{lines[k].split()[0]} {op[2]}".rstrip()
+        elif kind == "rows":
+            rows = list(range(motion + 3, len(lines)))
+            if rows:
+                k = rows[op[1] % len(rows)]
+                if op[2] == "cut":
+                    del lines[k]
+                elif op[2] == "dup":
+                    lines.insert(k, lines[k])
+                elif op[2] == "extra":
+                    lines[k] += " 1 2 3"
+                elif op[2] == "short":
+                    lines[k] = " ".join(lines[k].split()[:-1])
+                elif op[2] == "blank":
+                    lines[k] = ""
+                elif op[2] == "zeros":
+                    lines[k] = " ".join("0" for _ in lines[k].split())
+                elif op[2] == "huge":
+                    lines[k] = " ".join("1e308" for _ in lines[k].split())
+        elif kind == "line" and lines:
+            k = op[1] % len(lines)
+            if op[2] == "del":
+                del lines[k]
+            elif op[2] == "dup":
+                lines.insert(k, lines[k])
+            else:
+                lines.insert(k, op[2])
+    return "\n".join(lines) + "\n"
