@@ -270,6 +270,11 @@ def gltf_ops(max_ops: int = 3) -> st.SearchStrategy:
                       st.sampled_from([v for vs in _SPECIAL.values() for v in vs]))
     op = st.one_of(
         st.tuples(st.just("set"), section, i, i, value),
+        st.tuples(st.just("typed"), section, i, i, i),
+        st.tuples(st.just("ext"), st.sampled_from(["KHR_mesh_quantization",
+                                                   "KHR_draco_mesh_compression",
+                                                   "EXT_meshopt_compression",
+                                                   "KHR_materials_variants"]), st.booleans()),
         st.tuples(st.just("del"), section, i, i),
         st.tuples(st.just("prim"), i, i, st.sampled_from(["indices", "mode", "targets",
                                                           "attributes"]), value),
@@ -417,6 +422,18 @@ def apply_gltf(g: Gltf, ops, env: dict) -> Gltf:
             if isinstance(x, dict):
                 keys = _SECTIONS[op[1]]
                 x[keys[op[3] % len(keys)]] = copy.deepcopy(op[4])
+        elif kind == "typed":                       # a value made for that key
+            x = _pick(d, op[1], op[2])
+            if isinstance(x, dict):
+                keys = _SECTIONS[op[1]]
+                key = keys[op[3] % len(keys)]
+                vals = _SPECIAL.get(key) or [-1, 0, 1, 2, 3, 2**31, 2**32 + 1, 10**15]
+                x[key] = copy.deepcopy(vals[op[4] % len(vals)])
+        elif kind == "ext":
+            for name in ("extensionsUsed", "extensionsRequired")[:1 + op[2]]:
+                if not isinstance(d.get(name), list):
+                    d[name] = []
+                d[name].append(op[1])
         elif kind == "del":
             x = _pick(d, op[1], op[2])
             keys = _SECTIONS[op[1]]

@@ -560,3 +560,20 @@ def test_a_huge_scale_in_an_animation_is_refused_by_name(tmp_path):
         clips["animation_0"]
     except FormatError as exc:
         assert str(path) in str(exc) and "found" in str(exc)
+
+
+def test_no_output_over_a_buffer_file_the_run_reads(tmp_path, capsys):
+    # the buffer lives in "out.glb"; writing the rig there would destroy what it reads
+    b = Builder()
+    doc = _doc(b)
+    path = write(tmp_path / "x.gltf", doc, b, glb=False)
+    d = json.loads(path.read_text())
+    (tmp_path / "out.glb").write_bytes(bytes(b.data))
+    d["buffers"][0]["uri"] = "out.glb"
+    path.write_text(json.dumps(d))
+    before = (tmp_path / "out.glb").read_bytes()
+    assert main(["weights", str(path), "--endpoint", "projection", "-o",
+                 str(tmp_path / "out.glb")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "refusing to write over a file this command reads" in err[0]
+    assert (tmp_path / "out.glb").read_bytes() == before

@@ -39,6 +39,7 @@ from pathlib import Path
 from typing import Any
 from urllib.parse import unquote
 
+from .._inputs import note_input
 from .._parse import input_path, load_json
 from ..errors import FormatError
 
@@ -114,7 +115,9 @@ class GltfFile:
         try:
             # the safe loader: no NaN, infinities (1e999) or 5000-digit integers, which
             # a copy written back could not hold, and no nesting deep enough to crash
-            doc = load_json(bytes(text), "", what="glTF JSON")
+            # (a GLB's JSON chunk padded with NUL bytes, as some exporters write it,
+            # reads as if padded with spaces, as the specification asks)
+            doc = load_json(bytes(text).rstrip(b"\0"), "", what="glTF JSON")
         except ValueError as exc:
             msg = " ".join(str(exc).split()).lstrip(":, ")
             raise self.error("a glTF 2.0 file (JSON .gltf or binary .glb)",
@@ -325,6 +328,7 @@ class GltfFile:
         if have < length:
             raise self.error(f"{where}: {unquote(uri)!r} of at least {length} bytes "
                              "(its byteLength)", f"{have} bytes")
+        note_input(p)               # an output of this run may not be written over it
         with open(p, "rb") as fh:
             data = fh.read(length)
         if len(data) < length:

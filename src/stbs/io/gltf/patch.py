@@ -37,6 +37,7 @@ from typing import Any
 import numpy as np
 
 from ...rig.model import Rig
+from .._inputs import note_input
 from .accessors import ARRAY_BUFFER, FLOAT, AccessorWriter, read_accessor
 from .bones import TABLE_KEY, bone_table
 from .container import GltfFile
@@ -82,6 +83,7 @@ def _merge_buffers(f: GltfFile, doc: dict) -> AccessorWriter:
         p = f.resolve(uri, f"images[{i}].uri")
         if not p.is_file():
             continue                  # as broken as in the source; left as it was
+        note_input(p)
         data = p.read_bytes()
         mime = next((m for magic, m in _MAGIC if data.startswith(magic)), None)
         if mime is None:
