@@ -50,7 +50,8 @@ def real_array(name: str, x: Any, *, ndim: int | None = None, shape: tuple | Non
         _check_shape(name, a, shape)
     if not np.all(np.isfinite(a)):
         bad = np.argwhere(~np.isfinite(a))[0]
-        raise ValueError(f"{name} must be finite, got {a[tuple(bad)]} at index {tuple(bad)}")
+        at = tuple(int(i) for i in bad)
+        raise ValueError(f"{name} must be finite, got {a[at]} at index {at}")
     return a
 
 

@@ -611,3 +611,27 @@ def test_an_animation_claiming_days_is_refused_before_sampling(shared_data, tmp_
     assert len(err) == 1 and "more than 100000 frames" in err[0]
     assert not (tmp_path / "o.npz").exists()
     assert main(["export", str(bad), "-o", str(tmp_path / "rig.glb")]) == 0
+
+
+def test_non_finite_transforms_are_one_error_naming_the_file(shared_data, tmp_path):
+    """A binary FBX whose GeometricTranslation (a P70 record: three strings, then 'D'
+    doubles) is NaN: the error names the file, not an array deep in the library."""
+    import re
+    import struct
+
+    b = bytearray((shared_data / "characters" / "fbx" / FILES[0]).read_bytes())
+    hits = 0
+    for m in re.finditer(rb"GeometricTranslation", b):
+        i = m.end()
+        for _ in range(3):
+            i += 5 + struct.unpack_from("<I", b, i + 1)[0]
+        while b[i:i + 1] == b"D":
+            struct.pack_into("<d", b, i + 1, float("nan"))
+            i, hits = i + 9, hits + 1
+    assert hits
+    bad = tmp_path / "nan.fbx"
+    bad.write_bytes(bytes(b))
+    with pytest.raises(FormatError, match=r"nan\.fbx: expected an FBX scene of finite "
+                                          r"transforms .* must be finite, got nan at index "
+                                          r"\(0, 0, 0\)"):
+        read_fbx(bad)

@@ -656,7 +656,15 @@ def _read(path, *, skin=None, mesh=None, rigid: bool = True, anims: bool = True
     p = input_path(path, "FBX")
     suffix(p, FBX_EXTENSIONS, "read_fbx")
     meta, arr = _run_child(p, anims)
-    return _build(p, meta, arr, skin, mesh, anims, bool(rigid))
+    try:
+        return _build(p, meta, arr, skin, mesh, anims, bool(rigid))
+    except FormatError:
+        raise
+    except ValueError as exc:
+        if str(p) in str(exc):
+            raise                       # already names the file (e.g. a skin= it lacks)
+        raise FormatError(p, "an FBX scene of finite transforms that make a skeleton",
+                          str(exc)) from None
 
 
 def read_fbx(path: str | os.PathLike, *, skin: int | str | None = None,
