@@ -159,6 +159,8 @@ def _case(main, req: dict, base: int) -> dict:
         try:
             cap = base + int(req["memory"])
             resource.setrlimit(resource.RLIMIT_AS, (cap, cap))
+            for fd in _PIPES:                   # the worker's own
+                os.close(fd)
             for fd, p in ((1, out_path), (2, err_path)):
                 f = os.open(p, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o600)
                 os.dup2(f, fd)
@@ -211,13 +213,23 @@ def _case(main, req: dict, base: int) -> dict:
     return ans
 
 
+#: The file descriptors the worker reads requests from and answers on.
+_PIPES: list[int] = []
+
+
 def serve() -> None:
-    answers = os.fdopen(os.dup(1), "w", buffering=1, encoding="utf-8")
-    null = os.open(os.devnull, os.O_WRONLY)
-    os.dup2(null, 1)
+    # requests and answers on their own descriptors; stdin reads nothing, stdout goes
+    # nowhere (what stbs prints in a warm-up run is captured anyway)
+    _PIPES[:] = [os.dup(0), os.dup(1)]
+    requests = os.fdopen(_PIPES[0], "r", encoding="utf-8")
+    answers = os.fdopen(_PIPES[1], "w", buffering=1, encoding="utf-8")
+    for fd, mode in ((0, os.O_RDONLY), (1, os.O_WRONLY)):
+        null = os.open(os.devnull, mode)
+        os.dup2(null, fd)
+        os.close(null)
     from stbs.cli import main
 
-    for line in sys.stdin:
+    for line in requests:
         req = json.loads(line)
         if req["op"] == "warm":
             ans = _warm(main, req)

@@ -577,3 +577,15 @@ def test_no_output_over_a_buffer_file_the_run_reads(tmp_path, capsys):
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "refusing to write over a file this command reads" in err[0]
     assert (tmp_path / "out.glb").read_bytes() == before
+
+
+@pytest.mark.parametrize("uri, match", [
+    ("x" * 5000 + ".bin", "a readable file 'xxxx.*' beside the glTF file, found File name "
+                          "too long"),
+    ("da ta:application/octet-stream;base64," + "A" * 400, "a readable file|no such file"),
+    ("sub", "no such file"),
+])
+def test_a_buffer_file_that_cannot_be_read(tmp_path, uri, match):
+    (tmp_path / "sub").mkdir()
+    msg = _refused(_gltf(tmp_path, lambda d: d["buffers"][0].update(uri=uri)), match)
+    assert len(msg) < 600

@@ -321,16 +321,21 @@ class GltfFile:
 
     def _external(self, uri: str, length: int, where: str) -> bytes:
         p = self.resolve(uri, where)
-        if not p.is_file():
-            raise self.error(f"{where}: the file {unquote(uri)!r} beside the glTF file",
-                             "no such file")
-        have = p.stat().st_size
-        if have < length:
-            raise self.error(f"{where}: {unquote(uri)!r} of at least {length} bytes "
-                             "(its byteLength)", f"{have} bytes")
-        note_input(p)               # an output of this run may not be written over it
-        with open(p, "rb") as fh:
-            data = fh.read(length)
+        name = repr(unquote(uri)[:80])
+        try:
+            if not p.is_file():
+                raise self.error(f"{where}: the file {name} beside the glTF file",
+                                 "no such file")
+            have = p.stat().st_size
+            if have < length:
+                raise self.error(f"{where}: {name} of at least {length} bytes "
+                                 "(its byteLength)", f"{have} bytes")
+            note_input(p)           # an output of this run may not be written over it
+            with open(p, "rb") as fh:
+                data = fh.read(length)
+        except OSError as exc:      # a name too long, a file that cannot be read
+            raise self.error(f"{where}: a readable file {name} beside the glTF file",
+                             exc.strerror or type(exc).__name__) from None
         if len(data) < length:
-            raise self.error(f"{where}: {unquote(uri)!r} of {length} bytes", f"{len(data)}")
+            raise self.error(f"{where}: {name} of {length} bytes", f"{len(data)}")
         return data

@@ -81,10 +81,13 @@ def _merge_buffers(f: GltfFile, doc: dict) -> AccessorWriter:
         if not isinstance(uri, str) or uri.startswith("data:"):
             continue
         p = f.resolve(uri, f"images[{i}].uri")
-        if not p.is_file():
-            continue                  # as broken as in the source; left as it was
-        note_input(p)
-        data = p.read_bytes()
+        try:
+            if not p.is_file():
+                continue              # as broken as in the source; left as it was
+            note_input(p)
+            data = p.read_bytes()
+        except OSError:
+            continue                  # a name too long, unreadable: likewise
         mime = next((m for magic, m in _MAGIC if data.startswith(magic)), None)
         if mime is None:
             continue                  # KTX2, WebP: need their extension's rules; kept
