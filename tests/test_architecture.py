@@ -8,7 +8,8 @@ Walks every import statement in ``src/stbs`` (lazy ones inside functions too) wi
   reverse);
 - no subpackage imports another subpackage's private modules or private names
   (those starting with ``_``); the package root's own private helpers
-  (``stbs._checks``, ``stbs._optional``) serve every tier.
+  (``stbs._checks``, ``stbs._optional``, ``stbs._jit``, ``stbs._json``,
+  ``stbs._inputs``) serve every tier.
 """
 
 from __future__ import annotations
@@ -20,8 +21,9 @@ import pytest
 
 SRC = Path(__file__).resolve().parents[1] / "src" / "stbs"
 
-MATHS = {"_checks", "_optional", "geometry", "transforms", "skeleton", "pose", "clip", "motion",
-         "retargeting", "skinning", "weights", "meshing", "shapes"}
+MATHS = {"_checks", "_optional", "_jit", "_json", "_inputs", "geometry", "transforms",
+         "skeleton", "pose", "clip", "motion", "retargeting", "skinning", "weights", "meshing",
+         "shapes"}
 DATA = {"rig", "io"}
 FRONT = {"cli", "demo", "bench", "viewer", "bake"}
 TIER = {**{m: 0 for m in MATHS}, **{m: 1 for m in DATA}, **{m: 2 for m in FRONT}}

@@ -76,7 +76,7 @@ def test_frames_and_a_mapping_file(inputs, tmp_path, capsys):
     ('{"node2": "Pelvis"}', "mapping: the motion has no joint 'Pelvis' (for bone 'node2'); "
                             "its joints are joint_Root, Hips, "),
     ("[1, 2]", "expected a JSON object {rig bone: capture joint}, got a JSON list"),
-    ("{not json", "not JSON"),
+    ("{not json", "not valid mapping JSON"),
 ])
 def test_a_bad_mapping_is_one_line_and_status_2(inputs, tmp_path, capsys, content, expect):
     char, bvh, _, _ = inputs

@@ -24,7 +24,7 @@ import pytest
 from viewer_client import TIMEOUT, bar_rig, post_json, raw, request
 
 import stbs
-from stbs.io._inputs import inputs, note_input, tracking
+from stbs._inputs import inputs, note_input, tracking
 from stbs.viewer import ViewerServer, clips
 from stbs.viewer import server as server_module
 

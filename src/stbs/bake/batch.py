@@ -32,7 +32,7 @@ scheduler:
   writing the output, after it) loses nothing and leaves nothing once re-run. One run
   at a time per output folder: a run removes the temporary files of another's writers.
 - **Checked before any work**: the manifest is read with the safe JSON reader
-  (:func:`stbs.io._parse.read_json`), and every error is a ``ValueError`` naming the
+  (:func:`stbs._json.read_json`), and every error is a ``ValueError`` naming the
   manifest and the job: unknown keys or values, missing inputs, an output listed twice
   (after resolving paths), an output that is a job's rig, motion or mapping, an output
   outside the manifest's folder (after resolving symbolic links; allowed with
@@ -59,8 +59,8 @@ from typing import Any
 import numpy as np
 
 from .. import __version__
+from .._json import load_json, read_json
 from ..io import atomic_open
-from ..io._parse import load_json, read_json
 from .core import _npz_bytes, frame_limit, frame_times, load_motion, output_kind, write_frames
 
 __all__ = ["Job", "read_manifest", "run_manifest", "BatchReport", "job_hash", "plan",

@@ -147,7 +147,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                 advice = missing(need(args), "this command") if need else None
                 if advice:
                     raise OptionalDependencyError(advice)
-                from ..io._inputs import tracking
+                from .._inputs import tracking
 
                 with tracking():
                     _refuse_output_over_input(args)
@@ -178,7 +178,7 @@ def _refuse_output_over_input(args: argparse.Namespace) -> None:
     """Note the files named on the command line as inputs and refuse, before any work,
     an output that is one of them (the writers check again, for files that inputs
     name in turn, such as a glTF's buffers)."""
-    from ..io._inputs import check_output, note_input
+    from .._inputs import check_output, note_input
 
     outs = []
     for key, value in vars(args).items():

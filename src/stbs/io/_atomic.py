@@ -15,7 +15,7 @@ from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import IO, Any
 
-from ._inputs import check_output
+from .._inputs import check_output
 
 __all__ = ["atomic_open", "atomic_save", "atomic_write"]
 

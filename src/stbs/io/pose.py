@@ -78,9 +78,9 @@ import numpy as np
 
 from .. import _checks
 from .. import transforms as tf
+from .._json import read_json
 from ..pose import Pose
 from ..skeleton import Skeleton
-from ._parse import JSON_MAX_BYTES, JsonError, input_path, load_json
 
 __all__ = ["read_pose", "write_pose", "pose_to_dict", "POSE_FORMS", "JOINTS_KEYS", "FK_KEYS",
            "MAX_VALUE", "MIN_STRETCH", "MAX_STRETCH"]
@@ -134,37 +134,11 @@ def read_pose(path_or_dict: str | os.PathLike | Mapping[str, Any], sk: Skeleton)
 
 
 def _load(p: Path, what: str = "pose") -> tuple[str, Any]:
-    """A JSON file read safely (:func:`load_json`: bounded size and nesting, finite
-    numbers, integers of bounded length), each key at most once in an object."""
-    p = input_path(p, what)
-    src = str(p)
-    size = p.stat().st_size
-    if size > JSON_MAX_BYTES:
-        raise JsonError(f"{src}: expected a {what} file of at most {JSON_MAX_BYTES >> 20} MiB, "
-                        f"found {size >> 20} MiB")
-    data = p.read_bytes()
-    obj = load_json(data, src, what=f"{what} JSON")
-    # Parsed again (the checks above make that safe) only to refuse a repeated key,
-    # which json keeps silently (the last one wins).
-    try:
-        json.loads(data.decode("utf-8"), object_pairs_hook=_unique_keys)
-    except _Repeated as exc:
-        raise ValueError(f"{src}: expected each key once in a JSON object, found "
-                         f"{_show(exc.args[0])} twice") from None
-    return src, obj
-
-
-class _Repeated(Exception):
-    pass
-
-
-def _unique_keys(pairs: list[tuple[str, Any]]) -> dict:
-    seen: set[str] = set()
-    for k, _ in pairs:
-        if k in seen:
-            raise _Repeated(k)
-        seen.add(k)
-    return dict(pairs)
+    """A JSON file read safely (:func:`stbs._json.read_json`: bounded size and
+    nesting, finite numbers, integers of bounded length), each key at most once in an
+    object."""
+    path, obj = read_json(p, what, unique_keys=True)
+    return str(path), obj
 
 
 def _show(x: Any, budget: int = 60) -> str:

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import json
 import os
 import warnings
 from collections.abc import Mapping
@@ -11,6 +10,7 @@ from typing import Any, Literal
 import numpy as np
 
 from .. import transforms as tf
+from .._json import load_json
 from ..clip import Clip
 from ..motion import Motion
 from ..pose import local_arrays
@@ -146,28 +146,8 @@ def _chest(body: Body, tree: Tree) -> int:
 MAPPING_MAX_BYTES = 16 * 2**20
 
 
-class _Number(str):
-    """A number of a mapping file, kept as its text (never converted: a mapping has no
-    numbers, and a 401-digit one must not cost anything)."""
-
-
-class _Repeated(Exception):
-    pass
-
-
-def _pairs(pairs: list[tuple[str, Any]]) -> dict:
-    seen: set[str] = set()
-    for k, _ in pairs:
-        if k in seen:
-            raise _Repeated(k)
-        seen.add(k)
-    return dict(pairs)
-
-
 def _short(x: Any) -> str:
     """A name or value for a one-line message, at most about 60 characters."""
-    if isinstance(x, _Number):
-        return x if len(x) <= 40 else x[:37] + "..."
     if isinstance(x, str):
         return repr(x if len(x) <= 60 else x[:57] + "...")
     if x is None or isinstance(x, (bool, int, float)) and abs(x) < 1e20:
@@ -178,9 +158,9 @@ def _short(x: Any) -> str:
 
 
 def _read_mapping(path: str | os.PathLike) -> tuple[str, Any]:
-    """A mapping file's JSON, read safely: its size bounded, nesting refused (a mapping
-    is one flat object; the parser's depth guard is caught), numbers never converted,
-    ``NaN``/``Infinity`` and repeated keys refused. Errors name the file."""
+    """A mapping file's JSON, read safely (:func:`stbs._json.load_json`): its size
+    bounded, nesting, long integers, ``NaN`` and repeated keys refused. Errors name the
+    file."""
     where = os.fspath(path)
     try:
         with open(where, "rb") as f:
@@ -191,23 +171,8 @@ def _read_mapping(path: str | os.PathLike) -> tuple[str, Any]:
             data = f.read()
     except FileNotFoundError:
         raise FileNotFoundError(f"mapping file not found: {where!r}") from None
-    try:
-        text = data.decode("utf-8")
-    except UnicodeDecodeError as exc:
-        raise ValueError(f"{where}: expected UTF-8 mapping JSON {{rig bone: capture joint}}, "
-                         f"found an undecodable byte at offset {exc.start}") from None
-    try:
-        return where, json.loads(text, object_pairs_hook=_pairs, parse_int=_Number,
-                                 parse_float=_Number, parse_constant=_Number)
-    except json.JSONDecodeError as exc:
-        raise ValueError(f"{where}, line {exc.lineno}, column {exc.colno}: mapping file not "
-                         f"JSON ({exc.msg})") from None
-    except _Repeated as exc:
-        raise ValueError(f"{where}: expected each rig bone once in the mapping, found "
-                         f"{_short(exc.args[0])} twice") from None
-    except RecursionError:
-        raise ValueError(f"{where}: expected a flat JSON object {{rig bone: capture joint}}, "
-                         f"found values nested too deeply") from None
+    return where, load_json(data, where, what="mapping JSON {rig bone: capture joint}",
+                            unique_keys=True)
 
 
 def _given_mapping(mapping: Any, sk: Skeleton, motion: Motion) -> np.ndarray:
@@ -242,7 +207,7 @@ def _given_mapping(mapping: Any, sk: Skeleton, motion: Motion) -> np.ndarray:
         given[i] = bone
         if joint is None:
             continue
-        if not isinstance(joint, str) or isinstance(joint, _Number) or joint not in joints:
+        if not isinstance(joint, str) or joint not in joints:
             raise ValueError(f"{src}: the motion has no joint {_short(joint)} (for bone "
                              f"{_short(bone)}); its joints are {_listed(_joint_names(motion))}")
         out[i] = joints[joint]

@@ -38,9 +38,9 @@ from urllib.parse import parse_qs
 import numpy as np
 
 from .. import _optional
+from .._inputs import SameFileError, check_output
 from ..clip import Clip
 from ..io import atomic_open, clip_to_dict, read_clip
-from ..io._inputs import SameFileError, check_output
 from ..pose import Pose
 from ..skeleton import Skeleton
 

@@ -21,7 +21,7 @@ request goes through, in this order (docs/viewer.md has the full API):
    ``Transfer-Encoding``: 400, checked before any other rule; chunked bodies: 411) of
    at most ``max_body`` bytes (else 413, without reading it); a body that stops short
    (the connection idle for ``_Handler.timeout`` seconds, or closed) is 400 and closes
-   the connection. JSON bodies are read by :func:`stbs.io._parse.load_json` (nesting,
+   the connection. JSON bodies are read by :func:`stbs._json.load_json` (nesting,
    digits, finite numbers). Every refusal is a JSON ``{"error": one line, "status":
    N}``; client input never gets a 500 or prints on stderr.
 
@@ -39,7 +39,7 @@ go to a temporary file then rename
 (:mod:`stbs.io`'s atomic writers), only into the folder and the file the server was
 given (``pose_folder``, ``rig_target``); the client names at most a bare ``.json``
 file name in that folder (a bare ``.gif`` name for an export). Every save runs inside
-:func:`stbs.io._inputs.tracking` with the files the server reads noted (its
+:func:`stbs._inputs.tracking` with the files the server reads noted (its
 ``rig_source`` and ``inputs``, plus those of a ``stbs view`` run): a save over one of
 them is 409, ``"overwrite"`` or not, and leaves it untouched.
 """
@@ -63,9 +63,9 @@ from urllib.parse import parse_qs
 
 import numpy as np
 
+from .._inputs import SameFileError, note_input, tracking
+from .._json import JsonError, load_json
 from ..io import pose_to_dict, read_pose, write_pose, write_rig
-from ..io._inputs import SameFileError, note_input, tracking
-from ..io._parse import JsonError, load_json
 from ..pose import Pose
 from ..rig import Rig
 from . import clips
@@ -303,7 +303,7 @@ class ViewerServer:
     inputs : iterable of paths, keyword-only
         The files the rig, the clip and any pose were read from (the rig file, the
         motion, a mapping). For the server's life these and ``rig_source`` are its
-        inputs: each save runs inside :func:`stbs.io._inputs.tracking` with them noted,
+        inputs: each save runs inside :func:`stbs._inputs.tracking` with them noted,
         so a save that would write over one of them answers 409, even with
         ``"overwrite": true``, and leaves it untouched.
 
@@ -402,7 +402,7 @@ class ViewerServer:
 
     @contextlib.contextmanager
     def _writing(self):
-        """Every save runs inside :func:`stbs.io._inputs.tracking` with this server's
+        """Every save runs inside :func:`stbs._inputs.tracking` with this server's
         inputs noted, so the atomic writers refuse to write over one of them (and over
         a file the writer itself reads, such as a glTF ``rig_source``'s buffers).
 

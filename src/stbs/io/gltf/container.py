@@ -7,7 +7,7 @@ be safe on files from anywhere, and the rules are short enough to own:
 - a GLB's header and chunk lengths are checked against the file's size before any
   slicing; the JSON chunk comes first, at most one BIN chunk follows, others are
   skipped (as the specification asks);
-- the JSON is parsed by the safe loader (:func:`stbs.io._parse.load_json`): numbers
+- the JSON is parsed by the safe loader (:func:`stbs._json.load_json`): numbers
   that are not finite (``NaN``, ``Infinity``, ``1e999``), integers of more than 20
   digits and nesting deeper than 64 are one error, not a crash (nor a copy written
   back that no JSON reader reads);
@@ -39,8 +39,9 @@ from pathlib import Path
 from typing import Any
 from urllib.parse import unquote
 
-from .._inputs import note_input
-from .._parse import input_path, load_json
+from ..._inputs import note_input
+from ..._json import load_json
+from .._parse import input_path
 from ..errors import FormatError
 
 __all__ = ["GltfFile", "glb_bytes", "pad4", "BUDGET_BASE", "BUDGET_FACTOR"]

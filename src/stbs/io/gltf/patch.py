@@ -36,8 +36,8 @@ from typing import Any
 
 import numpy as np
 
+from ..._inputs import note_input
 from ...rig.model import Rig
-from .._inputs import note_input
 from .accessors import ARRAY_BUFFER, FLOAT, AccessorWriter, read_accessor
 from .bones import TABLE_KEY, bone_table
 from .container import GltfFile

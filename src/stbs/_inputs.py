@@ -12,13 +12,14 @@ refused: a script may read a rig, change it and save it in place.
 from __future__ import annotations
 
 import contextlib
+import errno
 import os
 import threading
 from collections.abc import Iterator
 from pathlib import Path
 
 __all__ = ["tracking", "note_input", "check_output", "check_outputs", "SameFileError",
-           "inputs"]
+           "inputs", "input_path"]
 
 _lock = threading.Lock()
 #: The runs being tracked (a stack: a command may run inside another's tracking).
@@ -87,3 +88,18 @@ def check_outputs(paths: list[str | os.PathLike | Path], what: str = "output") -
     """:func:`check_output` for each path."""
     for p in paths:
         check_output(p, what)
+
+
+def input_path(path: str | os.PathLike, what: str) -> Path:
+    """``path`` as a Path that exists and is a file, else FileNotFoundError/IsADirectoryError."""
+    try:
+        p = Path(os.fspath(path))
+    except TypeError:
+        raise TypeError(f"{what} path must be a str or os.PathLike, "
+                        f"got {type(path).__name__}") from None
+    if not p.exists():
+        raise FileNotFoundError(errno.ENOENT, f"{what} file not found", str(p))
+    if p.is_dir():
+        raise IsADirectoryError(errno.EISDIR, f"{what} path is a folder, expected a file", str(p))
+    note_input(p)
+    return p
