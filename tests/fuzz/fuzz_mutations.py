@@ -290,6 +290,10 @@ def gltf_ops(max_ops: int = 3) -> st.SearchStrategy:
                                                      "primitives", "accessors", "buffers",
                                                      "animations", "scenes"]), i),
         st.tuples(st.just("keys"), i, st.sampled_from([1, 2, 3, 1000, 20000])),
+        st.tuples(st.just("morph"), i, i, st.sampled_from([0.5, 1.0, -2.0, 1e-300, 1e30,
+                                                          1e308, 0.0])),
+        st.tuples(st.just("rigid"), i, i),
+        st.tuples(st.just("second-skin"), i, i, st.booleans()),
         st.tuples(st.just("external"), st.booleans()),
         st.tuples(st.just("glb"), st.sampled_from(["version0", "version1", "version3",
                                                    "length+", "length-", "json-type",
@@ -509,6 +513,36 @@ def apply_gltf(g: Gltf, ops, env: dict) -> Gltf:
                 d[what] = []
         elif kind == "keys":
             _more_keys(g, op[1], op[2])
+        elif kind == "morph":                       # a morph target, on by default
+            m = _pick(d, "meshes", op[1])
+            a = _pick(d, "accessors", op[2])
+            prims = m.get("primitives") if isinstance(m, dict) else None
+            if isinstance(prims, list) and prims and isinstance(prims[0], dict) and a:
+                attrs = prims[0].get("attributes")
+                pos = attrs.get("POSITION") if isinstance(attrs, dict) else None
+                target = pos if op[2] % 2 else op[2] % len(d["accessors"])
+                prims[0].setdefault("targets", [])
+                if isinstance(prims[0]["targets"], list):
+                    prims[0]["targets"].append({"POSITION": target})
+                    m["weights"] = [op[3]] * len(prims[0]["targets"])
+        elif kind == "rigid":                       # a mesh hung on a node, without a skin
+            nodes, meshes = _list(d, "nodes"), _list(d, "meshes")
+            if nodes and meshes and isinstance(nodes[op[1] % len(nodes)], dict):
+                nodes.append({"name": "part", "mesh": op[2] % len(meshes),
+                              "translation": [0, 0.1, 0]})
+                ch = nodes[op[1] % len(nodes)].setdefault("children", [])
+                if isinstance(ch, list):
+                    ch.append(len(nodes) - 1)
+        elif kind == "second-skin":                 # a second skin over the joints
+            skins, nodes = _list(d, "skins"), _list(d, "nodes")
+            if skins and nodes and isinstance(skins[op[1] % len(skins)], dict):
+                sk = copy.deepcopy(skins[op[1] % len(skins)])
+                if op[3]:
+                    sk.pop("inverseBindMatrices", None)
+                skins.append(sk)
+                with_mesh = [n for n in nodes if isinstance(n, dict) and "mesh" in n]
+                if with_mesh:
+                    with_mesh[op[2] % len(with_mesh)]["skin"] = len(skins) - 1
         elif kind == "external":
             bufs = _list(d, "buffers")
             if bufs and isinstance(bufs[0], dict):

@@ -2,7 +2,8 @@
 
 - glTF characters: ``SimpleSkin.gltf`` (buffers in a data URI), ``RiggedSimple.glb``
   and ``CesiumMan.glb`` (small GLBs), ``RiggedFigure.glb`` (a humanoid, the rig that
-  BVH captures are retargeted onto);
+  BVH captures are retargeted onto); and as stbs writes glTF: SimpleSkin written back
+  with endpoint weights and its bone table, and exported afresh with a keyed clip;
 - BVH captures cut to their first frames (cheap cases): CMU ``131_01`` and two walks;
 - a pose and a clip of SimpleSkin's skeleton written by :func:`stbs.io.write_pose` and
   :func:`stbs.io.write_clip` (both pose forms), and a pose by bone index that fits any
@@ -63,6 +64,19 @@ def build(data: Path) -> dict[str, bytes]:
                             ("clip.json", lambda p: io.write_clip(p, clip))):
             p = os.path.join(tmp, name)
             write(p)
+            out[name] = Path(p).read_bytes()
+    # glTF files as stbs writes them: a character written back with its endpoint weights
+    # and bone table, and a rig exported afresh with a keyed clip
+    from stbs.weights.endpoint import projection
+
+    with tempfile.TemporaryDirectory() as tmp:
+        for name, make in (
+                ("SimpleSkin-stbs.gltf", lambda p: io.write_rig(
+                    p, rig.replace(E=projection(rig.V, sk)),
+                    source=data / GLTF["SimpleSkin.gltf"])),
+                ("exported.glb", lambda p: io.write_gltf(p, rig, clip))):
+            p = os.path.join(tmp, name)
+            make(p)
             out[name] = Path(p).read_bytes()
     out["any-pose.json"] = json.dumps(ANY_POSE).encode()
     out["manifest.json"] = json.dumps(manifest()).encode()

@@ -41,20 +41,21 @@ from hypothesis import strategies as st
 
 pytestmark = pytest.mark.slow
 
-#: Now and then, byte-level edits on top of the structure-aware ones.
-def _sometimes(ops):
-    return st.one_of(st.none(), st.none(), st.none(), ops)
-
-
+#: The long profile's seconds (unset or 0: the short profile) and first seed.
 SECONDS = float(os.environ.get("STBS_FUZZ_SECONDS") or 0)
+SEED = int(os.environ.get("STBS_FUZZ_SEED") or 0)
 #: A file to append every case's outcome to (one JSON line each), for looking into
 #: what the cases reach.
 LOG = os.environ.get("STBS_FUZZ_LOG")
-SEED = int(os.environ.get("STBS_FUZZ_SEED") or 0)
 #: Cases per target in the short profile.
 SHORT = {"gltf": 160, "bvh": 40, "clip": 40, "pose": 40, "manifest": 20}
 #: Each target's share of the long profile's time.
 SHARE = {"gltf": 0.45, "bvh": 0.15, "clip": 0.12, "pose": 0.1, "manifest": 0.18}
+
+
+def _sometimes(ops):
+    """Now and then (one case in four), byte-level edits on top of the others."""
+    return st.one_of(st.none(), st.none(), st.none(), ops)
 
 
 def _signature(problem: str) -> str:
@@ -111,7 +112,11 @@ def _run(fuzz_env: FuzzEnv, target: str, strategy, make_case) -> None:
 
 
 # ----------------------------------------------------------------------------- glTF
-GLTF_SEEDS = ["SimpleSkin.gltf", "SimpleSkin.gltf", "RiggedSimple.glb", "CesiumMan.glb"]
+GLTF_SEEDS = ["SimpleSkin.gltf", "SimpleSkin.gltf", "RiggedSimple.glb", "CesiumMan.glb",
+              "SimpleSkin-stbs.gltf", "exported.glb"]
+#: --skin and --mesh (which skeleton or mesh of a character to read), now and then
+PICK = [[], [], [], ["--skin", "0"], ["--skin", "1"], ["--mesh", "0"], ["--mesh", "2"],
+        ["--skin", "stbs"], ["--mesh", "mesh"]]
 GLTF_COMMANDS = ["weights", "weights-gltf", "deform", "export", "animate"]
 _PARSED: dict[str, Gltf] = {}
 
@@ -122,7 +127,7 @@ def _canary(env: FuzzEnv) -> dict:
 
 
 def _gltf_case(env: FuzzEnv, x) -> Case:
-    name, cmd, ops, raw = x
+    name, cmd, ops, raw, pick = x
     if name not in _PARSED:
         _PARSED[name] = Gltf.parse((env.seeds / name).read_bytes())
     g = apply_gltf(_PARSED[name], ops, _canary(env))
@@ -141,12 +146,15 @@ def _gltf_case(env: FuzzEnv, x) -> Case:
     }[cmd]
     if cmd == "deform":
         files["pose.json"] = (env.seeds / "any-pose.json").read_bytes()
+        if pick[:1] == ["--mesh"]:       # deform's --mesh is a rest mesh file
+            pick = []
+    argv = argv + pick
     return Case(argv, files, g.links, check=check, confined=True, label=f"glTF {name} {cmd}")
 
 
 def test_fuzz_gltf(fuzz_env):
     strategy = st.tuples(st.sampled_from(GLTF_SEEDS), st.sampled_from(GLTF_COMMANDS),
-                         gltf_ops(), _sometimes(byte_ops(2)))
+                         gltf_ops(), _sometimes(byte_ops(2)), st.sampled_from(PICK))
     _run(fuzz_env, "gltf", strategy, _gltf_case)
 
 
