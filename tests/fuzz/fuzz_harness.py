@@ -13,7 +13,8 @@ under an address-space cap, a per-case timeout enforced here). :meth:`FuzzEnv.ru
 writes a :class:`Case` into a fresh folder, runs its command there and returns what
 went wrong, judged by the contract of ``stbs``:
 
-- exit status 0 with outputs that read back and look right (finite, in range), or
+- exit status 0 with outputs that read back and look right (finite, in range) and no
+  numeric warning (overflow, invalid value) on stderr, or
   exit status 2 with exactly one line on stderr, ``stbs CMD: error: ...``, naming one
   of the case's input files; never a traceback, another status, a signal, a timeout;
 - no file created, changed or removed outside the case folder (the rest of ROOT is
@@ -153,10 +154,14 @@ class Worker:
         self.proc = None
 
 
-def _tree(folder: Path) -> dict[str, tuple]:
-    """Every entry under ``folder``: relative path -> (kind, size, mtime_ns)."""
+def _tree(folder: Path, skip: tuple[str, ...] = ()) -> dict[str, tuple]:
+    """Every entry under ``folder`` but the top-level ones in ``skip``: relative path ->
+    (kind, size, mtime_ns)."""
     out = {}
     for dirpath, dirs, files in os.walk(folder):
+        if dirpath == str(folder):
+            dirs[:] = [d for d in dirs if d not in skip]
+            files = [f for f in files if f not in skip]
         for name in dirs + files:
             p = os.path.join(dirpath, name)
             st = os.lstat(p)
@@ -263,9 +268,7 @@ class FuzzEnv:
     def _outside(self) -> dict:
         # the case's own folder, the worker's capture files, TMPDIR (checked empty
         # apart) and the failures kept are not "outside"
-        own = ("cases", "io", "tmp", "failures")
-        snap = {k: v for k, v in _tree(self.root).items()
-                if k not in own and not k.startswith(tuple(o + os.sep for o in own))}
+        snap = _tree(self.root, skip=("cases", "io", "tmp", "failures"))
         snap["#canary"] = _digest(self.canary)
         snap["#seeds"] = tuple(sorted(self.seed_hashes.items()))
         return snap
@@ -305,6 +308,9 @@ class FuzzEnv:
             p.append(f"exit status {out.status}: {' | '.join(lines[-3:])[-600:]}")
         if out.status == 0 and out.check:
             p.append(f"exit 0 but {out.check}")
+        numeric = [s for s in lines if "RuntimeWarning:" in s]
+        if numeric:            # an overflow or a NaN met on the way: a check missing
+            p.append(f"a numeric warning: {numeric[0][:300]}")
         # the canary and other secrets
         for stream, text in (("stdout", out.stdout), ("stderr", err)):
             if self.marker in text or _PASSWD.decode() in text:

@@ -167,6 +167,11 @@ def json_ops(max_ops: int = 3, values: st.SearchStrategy | None = None) -> st.Se
     return st.lists(op, min_size=1, max_size=max_ops)
 
 
+#: A document grown (or copied into itself) past this many places is not grown further:
+#: the cases stay a few megabytes, cheap to make and to run.
+MAX_PLACES = 30_000
+
+
 def apply_json(doc, ops):
     """``doc`` (a parsed JSON document, copied) with ``ops`` applied."""
     doc = copy.deepcopy(doc)
@@ -177,6 +182,8 @@ def apply_json(doc, ops):
         p = ps[op[1] % len(ps)]
         parent, key = _get(doc, p[:-1]), p[-1]
         kind = op[0]
+        if kind in ("grow", "copy") and len(ps) > MAX_PLACES:
+            continue
         if kind == "replace":
             parent[key] = copy.deepcopy(op[2])
         elif kind == "delete":
@@ -198,7 +205,7 @@ def apply_json(doc, ops):
             if isinstance(v, list) and v:
                 parent[key] = (v * (op[2] // len(v) + 1))[:max(op[2], len(v))]
             elif isinstance(v, str):
-                parent[key] = (v or "x") * op[2]
+                parent[key] = ((v or "x") * op[2])[:100_000]
     return doc
 
 

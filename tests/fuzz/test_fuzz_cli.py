@@ -48,7 +48,7 @@ SEED = int(os.environ.get("STBS_FUZZ_SEED") or 0)
 #: what the cases reach.
 LOG = os.environ.get("STBS_FUZZ_LOG")
 #: Cases per target in the short profile.
-SHORT = {"gltf": 160, "bvh": 40, "clip": 40, "pose": 40, "manifest": 20}
+SHORT = {"gltf": 280, "bvh": 80, "clip": 60, "pose": 60, "manifest": 40}
 #: Each target's share of the long profile's time.
 SHARE = {"gltf": 0.45, "bvh": 0.15, "clip": 0.12, "pose": 0.1, "manifest": 0.18}
 
@@ -69,10 +69,12 @@ def _signature(problem: str) -> str:
 
 def _run(fuzz_env: FuzzEnv, target: str, strategy, make_case) -> None:
     found: dict[str, list] = {}
-    stats = {"cases": 0, "seconds": 0.0, "ok": 0, "refused": 0}
+    stats = {"cases": 0, "seconds": 0.0, "ok": 0, "refused": 0, "making": 0.0}
 
     def one(x):
+        t = time.perf_counter()
         case = make_case(fuzz_env, x)
+        stats["making"] += time.perf_counter() - t
         out = fuzz_env.run(case)
         stats["cases"] += 1
         stats["seconds"] += out.seconds
@@ -102,7 +104,8 @@ def _run(fuzz_env: FuzzEnv, target: str, strategy, make_case) -> None:
         settings(max_examples=SHORT[target], derandomize=True, **common)(
             given(strategy)(one))()
     print(f"\nfuzz {target}: {stats['cases']} cases in {stats['seconds']:.1f} s "
-          f"({stats['ok']} exit 0, {stats['refused']} exit 2), {len(found)} distinct problems")
+          f"({stats['ok']} exit 0, {stats['refused']} exit 2; {stats['making']:.1f} s making "
+          f"them), {len(found)} distinct problems")
     if found:
         lines = [f"{n}x {label}: {prob}\n    case: {x!r}\n    stbs {' '.join(argv)}"
                  for n, label, x, prob, argv in found.values()]

@@ -98,6 +98,8 @@ def _problems(fuzz_env, code: str, *, check: str = "", files=None, timeout=None,
      "bytes on stderr"),
     ("open('rig.gltf', 'ab').write(b' ')", "input files changed"),
     ("import tempfile\ntempfile.mkstemp()", "temporary files left"),
+    ("import sys\nprint('stbs: warning: RuntimeWarning: overflow', file=sys.stderr)",
+     "a numeric warning"),
 ])
 def test_each_check_can_fail(fuzz_env, code, problem):
     got = _problems(fuzz_env, code)
