@@ -2,7 +2,7 @@
 
 :class:`FuzzEnv` owns a folder for a whole session::
 
-    ROOT/canary-<marker>.bin   the canary: a unique random marker, repeated
+    ROOT/canary-<hex>.bin      the canary: a unique random marker, repeated
     ROOT/seeds/                valid files to mutate (made with the library)
     ROOT/cases/<k>/            one case: its input files, and where it writes
     ROOT/io/                   the worker's capture files
@@ -177,7 +177,7 @@ class FuzzEnv:
     """The session's folder, canary, seeds and worker (see the module docs)."""
 
     def __init__(self, root: Path, seeds: dict[str, bytes],
-                 warmups: list[tuple[list[str], dict[str, bytes], str]]):
+                 warmups: list[tuple[list[str], dict[str, bytes]]]):
         self.root = root.resolve()
         self.marker = "CANARY" + secrets.token_hex(9).upper()     # 24 ASCII bytes
         self.canary = self.root / f"canary-{self.marker[6:14]}.bin"
@@ -191,15 +191,13 @@ class FuzzEnv:
             os.chmod(self.seeds / name, 0o444)
         self.seed_hashes = {n: _digest(self.seeds / n) for n in seeds}
         self.count = 0
-        self.cases_run = 0
-        self.seconds = 0.0
         env = dict(os.environ, TMPDIR=str(self.root / "tmp"), STBS_FUZZ_SECRET=self.marker,
                    OMP_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1", MKL_NUM_THREADS="1",
                    NUMBA_NUM_THREADS="1", NUMBA_THREADING_LAYER="workqueue",
                    PYTHONDONTWRITEBYTECODE="1", PYTHONHASHSEED="0")
         env.pop("STBS_DATA", None)
         warm = []
-        for k, (argv, files, _) in enumerate(warmups):
+        for k, (argv, files) in enumerate(warmups):
             d = self.root / "io" / f"warm{k}"
             d.mkdir()
             for name, data in files.items():
@@ -248,8 +246,6 @@ class FuzzEnv:
                                    "io": str(self.root / "io"), "memory": MEMORY,
                                    "check": case.check, "exec": exec_code}, timeout)
         dt = time.perf_counter() - t
-        self.cases_run += 1
-        self.seconds += dt
         if ans is None:
             out = Outcome(None, None, "", "", dt, timed_out=True)
         else:

@@ -36,7 +36,7 @@ def cut_bvh(text: str, frames: int) -> str:
     lines = text.splitlines()
     m = next(k for k, s in enumerate(lines) if s.strip().upper().startswith("MOTION"))
     rest = lines[m + 1:]
-    head = [s for s in rest[:2]]
+    head = rest[:2]
     body = [s for s in rest[2:] if s.strip()][:frames]
     return "\n".join(lines[:m + 1] + [f"Frames: {frames}", head[1]] + body) + "\n"
 
@@ -91,26 +91,26 @@ def manifest(folder: str = "") -> list[dict]:
              "output": "walk.npz", "method": "stbs-dqs", "frames": "0:3"}]
 
 
-def warmups() -> list[tuple[list[str], dict[str, bytes], str]]:
+def warmups() -> list[tuple[list[str], dict[str, bytes]]]:
     """Runs that load what the cases need (numba's kernels, lazy imports) into the
-    worker once: (argv, files, check)."""
+    worker once: (argv, files of its folder)."""
     runs = [
-        (["weights", "{seeds}/SimpleSkin.gltf", "--endpoint", "projection", "-o", "o.gltf"]),
-        (["weights", "{seeds}/CesiumMan.glb", "--endpoint", "projection", "-o", "o.glb"]),
-        (["export", "{seeds}/RiggedSimple.glb", "-o", "o.glb"]),
-        (["animate", "{seeds}/SimpleSkin.gltf", "--motion", "{seeds}/SimpleSkin.gltf", "-o",
-          "o.npz"]),
-        (["animate", "{seeds}/SimpleSkin.gltf", "--motion", "{seeds}/clip.json", "-o",
-          "o.glb"]),
-        (["animate", "{seeds}/RiggedFigure.glb", "--motion", "{seeds}/walk.bvh", "-o",
-          "o.npz"]),
-        (["animate", "{seeds}/RiggedFigure.glb", "--motion", "{seeds}/cmu.bvh", "-o",
-          "o.json"]),
+        ["weights", "{seeds}/SimpleSkin.gltf", "--endpoint", "projection", "-o", "o.gltf"],
+        ["weights", "{seeds}/CesiumMan.glb", "--endpoint", "projection", "-o", "o.glb"],
+        ["export", "{seeds}/RiggedSimple.glb", "-o", "o.glb"],
+        ["animate", "{seeds}/SimpleSkin.gltf", "--motion", "{seeds}/SimpleSkin.gltf", "-o",
+         "o.npz"],
+        ["animate", "{seeds}/SimpleSkin.gltf", "--motion", "{seeds}/clip.json", "-o",
+         "o.glb"],
+        ["animate", "{seeds}/RiggedFigure.glb", "--motion", "{seeds}/walk.bvh", "-o",
+         "o.npz"],
+        ["animate", "{seeds}/RiggedFigure.glb", "--motion", "{seeds}/cmu.bvh", "-o",
+         "o.json"],
     ]
     for method in ("lbs", "dqs", "stbs-lbs", "stbs-dqs"):
         runs.append(["deform", "{seeds}/SimpleSkin.gltf", "--pose", "{seeds}/pose.json",
                      "--method", method, "-o", "o.npz"])
-    out = [(argv, {}, "") for argv in runs]
+    out = [(argv, {}) for argv in runs]
     out.append((["animate", "--manifest", "manifest.json"],
-                {"manifest.json": json.dumps(manifest("{seeds}/")).encode()}, ""))
+                {"manifest.json": json.dumps(manifest("{seeds}/")).encode()}))
     return out
