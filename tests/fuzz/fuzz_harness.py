@@ -75,6 +75,9 @@ class Case:
     confined : bool
         True when the inputs come from elsewhere and may name no file outside their
         folder (a glTF's buffers): reading the canary is then a failure.
+    outputs_named : bool
+        True when the inputs name the outputs (a manifest's jobs): an error may then
+        name an output path in the case folder rather than an input file.
     label : str
         What the case is, for reports.
     """
@@ -84,6 +87,7 @@ class Case:
     links: dict[str, str] = field(default_factory=dict)
     check: str = ""
     confined: bool = True
+    outputs_named: bool = False
     label: str = ""
 
 
@@ -298,6 +302,8 @@ class FuzzEnv:
             else:
                 names = set(case.files) | {os.path.basename(a) for a in argv[1:]
                                            if not a.startswith("-")}
+                if case.outputs_named:
+                    names.add(str(folder))
                 if not any(n and n in lines[0] for n in names):
                     p.append(f"an error naming none of the input files: {lines[0][:400]!r}")
         elif out.status != 0:

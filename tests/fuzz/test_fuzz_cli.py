@@ -261,7 +261,7 @@ def _manifest_case(env: FuzzEnv, x) -> Case:
     files = {n: (env.seeds / n).read_bytes() for n in _MANIFEST_FILES}
     files["manifest.json"] = data
     return Case(["animate", "--manifest", "manifest.json"], files, check="manifest",
-                confined=False, label="manifest")
+                confined=False, outputs_named=True, label="manifest")
 
 
 def test_fuzz_manifest(fuzz_env):
