@@ -39,6 +39,7 @@ INSTALLS_ON_BOOKWORM = {
     "pytest": "7",
     "ruff": "0.13",          # 0.12 and older report UP038 on this code base
     "build": "1",
+    "hypothesis": "6.170",   # pure Python; the release the fuzz suite was written against
     "playwright": "1.65",    # with Debian's chromium (apt), never a downloaded browser
     "dask": "2024.8",        # pure Python
     "distributed": "2024.8",
