@@ -300,6 +300,7 @@ def gltf_ops(max_ops: int = 3) -> st.SearchStrategy:
         st.tuples(st.just("morph"), i, i, st.sampled_from([0.5, 1.0, -2.0, 1e-300, 1e30,
                                                           1e308, 0.0])),
         st.tuples(st.just("rigid"), i, i),
+        st.tuples(st.just("chain"), i, st.sampled_from([50, 500, 3000])),
         st.tuples(st.just("second-skin"), i, i, st.booleans()),
         st.tuples(st.just("external"), st.booleans()),
         st.tuples(st.just("glb"), st.sampled_from(["version0", "version1", "version3",
@@ -532,6 +533,22 @@ def apply_gltf(g: Gltf, ops, env: dict) -> Gltf:
                 if isinstance(prims[0]["targets"], list):
                     prims[0]["targets"].append({"POSITION": target})
                     m["weights"] = [op[3]] * len(prims[0]["targets"])
+        elif kind == "chain":                       # a chain of joints below a joint
+            skin, nodes = _pick(d, "skins", 0), _list(d, "nodes")
+            joints = skin.get("joints") if isinstance(skin, dict) else None
+            if nodes and isinstance(joints, list) and joints:
+                top = joints[op[1] % len(joints)]
+                if isinstance(top, int) and 0 <= top < len(nodes) and \
+                        isinstance(nodes[top], dict):
+                    first = len(nodes)
+                    nodes += [{"name": f"chain{m}", "translation": [0, 0.01, 0],
+                               "children": [first + m + 1]} for m in range(op[2])]
+                    del nodes[-1]["children"]
+                    ch = nodes[top].setdefault("children", [])
+                    if isinstance(ch, list):
+                        ch.append(first)
+                    joints += range(first, first + op[2])
+                    skin.pop("inverseBindMatrices", None)   # (binds: the identity)
         elif kind == "rigid":                       # a mesh hung on a node, without a skin
             nodes, meshes = _list(d, "nodes"), _list(d, "meshes")
             if nodes and meshes and isinstance(nodes[op[1] % len(nodes)], dict):

@@ -589,3 +589,31 @@ def test_a_buffer_file_that_cannot_be_read(tmp_path, uri, match):
     (tmp_path / "sub").mkdir()
     msg = _refused(_gltf(tmp_path, lambda d: d["buffers"][0].update(uri=uri)), match)
     assert len(msg) < 600
+
+
+def test_deep_chains_of_nodes_are_read_in_linear_time(tmp_path):
+    # 20 000 nodes above the skeleton's root, and 2000 rigid parts each hung below the
+    # last, under its tip: every walk up the hierarchy once would be quadratic
+    up, parts = 20_000, 2_000
+
+    def edit(d):
+        n0 = len(d["nodes"])
+        d["nodes"] += [{"children": [n0 + k + 1]} for k in range(up - 1)] + [{"children": [0]}]
+        d["scenes"][0]["nodes"] = [n0, 2]
+        n1 = len(d["nodes"])
+        d["nodes"][1]["children"] = [n1]
+        d["nodes"] += [{"mesh": 0, "translation": [0, 0.001, 0], "children": [n1 + k + 1]}
+                       for k in range(parts)]
+        del d["nodes"][-1]["children"]
+        d["skins"].append({"joints": [0, 1]})            # a second skin, one skeleton
+        d["nodes"].append({"mesh": 0, "skin": 1})
+        d["scenes"][0]["nodes"].append(len(d["nodes"]) - 1)
+
+    path = _gltf(tmp_path, edit)
+    t = time.perf_counter()
+    rig, _ = read_gltf(path)
+    assert time.perf_counter() - t < 5
+    assert rig.V.shape == (4 * (2 + parts), 3) and len(rig.meta["gltf"]["rigid"]) == parts
+    # the last part hangs 2000 steps of 0.001 above the tip's bind (the origin: the
+    # skin has no inverse bind matrices)
+    assert np.isclose(rig.V[-4:, 1].min(), parts * 0.001)

@@ -296,10 +296,7 @@ def decode_clip(f: GltfFile, scene: Scene, J: Joints, a: int, name: str) -> Clip
     b = sk.n_bones
     nodes = J.nodes
     bone_of = {node: i for i, node in enumerate(nodes)}
-    relevant: set[int] = set()
-    for j in nodes:
-        relevant.add(j)
-        relevant.update(scene.ancestors(j))
+    relevant = scene.upward(nodes)
     chans = _channels(f, a, relevant | set(J.carried), scene.n)
     _warn_carried(f, scene, J, chans, f"animation {a} ({name!r})")
     chans = {key: ch for key, ch in chans.items() if key[0] in relevant}

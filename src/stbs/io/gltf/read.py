@@ -130,8 +130,17 @@ def _label(scene: Scene, k: int, mesh: int, skin: int) -> str:
 def _skeletons(scene: Scene, skins: list[int]) -> dict[int, int]:
     """Skin -> the first skin of its skeleton: skins sharing joints, or with joints
     below another's, are one skeleton."""
-    joints = {s: set(scene.skin_joints(s)) for s in skins}
-    reach = {s: set(j) | {a for x in j for a in scene.ancestors(x)} for s, j in joints.items()}
+    joints = {s: scene.skin_joints(s) for s in skins}
+    at: dict[int, list[int]] = {}
+    for s in skins:
+        for j in joints[s]:
+            at.setdefault(j, []).append(s)
+    # cover[k]: the skins with a joint at node k or above it (one pass down the tree)
+    cover: list[frozenset] = [frozenset()] * scene.n
+    for k in scene.order:
+        p = int(scene.parent[k])
+        base = cover[p] if p >= 0 else frozenset()
+        cover[k] = base | frozenset(at[k]) if k in at else base
     root = {s: s for s in skins}
 
     def find(s):
@@ -139,10 +148,13 @@ def _skeletons(scene: Scene, skins: list[int]) -> dict[int, int]:
             s = root[s]
         return s
 
-    for x in skins:
-        for y in skins:
-            if x < y and (joints[x] & reach[y] or joints[y] & reach[x]):
-                root[find(y)] = find(x)
+    # a skin with a joint at or above another's joint is of the same skeleton
+    for s in skins:
+        for j in joints[s]:
+            for x in cover[j]:
+                a, b = find(x), find(s)
+                if a != b:
+                    root[max(a, b)] = min(a, b)
     return {s: find(s) for s in skins}
 
 
@@ -374,11 +386,10 @@ def _read(f: GltfFile, skin, mesh, rigid: bool = True) -> tuple[Rig, Scene, Join
     if not np.isfinite(bind).all():
         raise f.error("invertible inverse bind matrices", "a singular one")
     parent = np.full(b, -1, dtype=np.int64)
+    up = scene.nearest_above(col)
     for i, node in enumerate(nodes):
-        for a in scene.ancestors(node):
-            if a in col:
-                parent[i] = col[a]
-                break
+        if up[node] >= 0:
+            parent[i] = col[int(up[node])]
 
     # ---- geometry
     Vs, Fs, Ws, Es, prims = [], [], [], [], []
@@ -417,14 +428,12 @@ def _read(f: GltfFile, skin, mesh, rigid: bool = True) -> tuple[Rig, Scene, Join
     # G_j L at any time, exactly
     parts: list[dict] = []
     carried: dict[int, tuple[int, int]] = {}
-    for node, m, joint, chain in (scene.attached(set(col)) if rigid and mesh is None
-                                  else []):
-        L = np.eye(4)
-        for x in chain:
-            L = L @ scene.local[x]
+    for node, m, joint, L in (scene.attached(set(col)) if rigid and mesh is None else []):
         X = bind[col[joint]] @ L
-        for x in chain:
+        x = node                 # the nodes from the mesh's up to (not) its joint's
+        while x != joint and x not in carried:
             carried[x] = (node, col[joint])
+            x = int(scene.parent[x])
         for k, what, _, V, F in _primitives(f, node, m):
             n = len(V)
             V, F = _placed(V, F, X)

@@ -127,6 +127,11 @@ class Scene:
         self.parent = parent
         self.depth = depth
         self.order = np.argsort(depth, kind="stable")
+        tops = np.arange(n)
+        for k in self.order:                    # parents first: each node's tree root
+            if parent[k] >= 0:
+                tops[k] = tops[parent[k]]
+        self.tops = tops
         self.T, self.Q, self.S, self.local, self.matrix = T, Q, S, local, is_matrix
         self.names = names
         self._world = None
@@ -184,8 +189,27 @@ class Scene:
 
     def top(self, k: int) -> int:
         """The root of the tree holding node ``k``."""
-        a = self.ancestors(k)
-        return a[-1] if a else k
+        return int(self.tops[k])
+
+    def nearest_above(self, marked) -> np.ndarray:
+        """(n,) int: each node's nearest ancestor in ``marked`` (a set of nodes), -1 for
+        none; one pass down the hierarchy, so deep trees cost no more than wide ones."""
+        up = np.full(self.n, -1, dtype=np.int64)
+        for k in self.order:
+            p = int(self.parent[k])
+            if p >= 0:
+                up[k] = p if p in marked else up[p]
+        return up
+
+    def upward(self, nodes) -> set[int]:
+        """``nodes`` and every node above them (each walk stops at a node already met)."""
+        out: set[int] = set()
+        for k in nodes:
+            k = int(k)
+            while k >= 0 and k not in out:
+                out.add(k)
+                k = int(self.parent[k])
+        return out
 
     def name(self, k: int) -> str:
         """Node ``k``'s name, or ``node<k>``."""
@@ -209,24 +233,25 @@ class Scene:
         """(node, mesh, skin) of every node with both a mesh and a skin, in node order."""
         return [c for c in self.mesh_nodes() if c[2] is not None]
 
-    def attached(self, joints) -> list[tuple[int, int, int, list[int]]]:
+    def attached(self, joints) -> list[tuple[int, int, int, np.ndarray]]:
         """Meshes hung rigidly on ``joints`` (a set of node indices): (node, mesh, joint,
-        chain) of every node with a mesh and no skin that is one of ``joints`` or lies
+        L) of every node with a mesh and no skin that is one of ``joints`` or lies
         below one, in node order; ``joint`` is the nearest such node (itself or above),
-        ``chain`` the nodes from just below ``joint`` down to ``node`` (empty when the
-        node is the joint)."""
-        out = []
-        for k, mesh, skin in self.mesh_nodes():
-            if skin is not None:
-                continue
-            chain = []
-            x = k
-            while x >= 0 and x not in joints:
-                chain.append(x)
-                x = int(self.parent[x])
-            if x >= 0:
-                out.append((k, mesh, x, chain[::-1]))
-        return out
+        ``L`` the product of the rest local matrices of the nodes from just below
+        ``joint`` down to ``node`` (the identity when the node is the joint). One pass
+        down the hierarchy: deep chains of nodes cost no more than wide trees."""
+        up = self.nearest_above(joints)
+        hung = [(k, mesh, k if k in joints else int(up[k]))
+                for k, mesh, skin in self.mesh_nodes()
+                if skin is None and (k in joints or up[k] >= 0)]
+        path = self.upward(k for k, _, j in hung if k != j)
+        rel: dict[int, np.ndarray] = {}
+        for k in self.order:
+            k = int(k)
+            if k in path and k not in joints and up[k] >= 0:
+                p = int(self.parent[k])
+                rel[k] = self.local[k] if p in joints else rel[p] @ self.local[k]
+        return [(k, mesh, j, rel[k] if k != j else np.eye(4)) for k, mesh, j in hung]
 
     def skin_joints(self, s: int) -> list[int]:
         """The joint nodes of skin ``s``, checked: distinct nodes with a common root."""
