@@ -5,7 +5,7 @@ is checked).
 Two profiles:
 
 - short (the default, run by ``make test``): a fixed number of cases per target,
-  derandomized (the same cases on every run), about half a minute in all;
+  derandomized (the same cases on every run), under a minute in all;
 - long (``make fuzz``; ``STBS_FUZZ_SECONDS=N`` sets it): each target draws cases for
   its share of N seconds, from seeds ``STBS_FUZZ_SEED`` (default 0), 1, 2, ...
 
