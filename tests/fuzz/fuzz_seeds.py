@@ -79,6 +79,20 @@ def build(data: Path) -> dict[str, bytes]:
             make(p)
             out[name] = Path(p).read_bytes()
     out["any-pose.json"] = json.dumps(ANY_POSE).encode()
+    # a rig whose vertices each have six bones (the skinning kernels' other form, which
+    # the worker's warm-up compiles), and a clip of its skeleton
+    wide = io.read_rig(data / GLTF["CesiumMan.glb"])
+    W = np.asarray(wide.W) + 0.01 * (np.arange(wide.skeleton.n_bones) < 6)
+    wide = wide.replace(W=W / W.sum(axis=1, keepdims=True), E=None, meta={})
+    wide = wide.replace(E=projection(wide.V, wide.skeleton))
+    turn = stbs.forward_kinematics(wide.skeleton, stretch=np.full(wide.skeleton.n_bones, 1.1))
+    with tempfile.TemporaryDirectory() as tmp:
+        for name, write in (("wide.npz", lambda p: io.save_rig(p, wide)),
+                            ("wide-clip.json", lambda p: io.write_clip(p, stbs.Clip(
+                                [(0.0, stbs.Pose.rest(wide.skeleton)), (0.1, turn)])))):
+            p = os.path.join(tmp, name)
+            write(p)
+            out[name] = Path(p).read_bytes()
     out["manifest.json"] = json.dumps(manifest()).encode()
     return out
 
@@ -107,9 +121,15 @@ def warmups() -> list[tuple[list[str], dict[str, bytes]]]:
         ["animate", "{seeds}/RiggedFigure.glb", "--motion", "{seeds}/cmu.bvh", "-o",
          "o.json"],
     ]
-    for method in ("lbs", "dqs", "stbs-lbs", "stbs-dqs"):
-        runs.append(["deform", "{seeds}/SimpleSkin.gltf", "--pose", "{seeds}/pose.json",
-                     "--method", method, "-o", "o.npz"])
+    for method in ("lbs", "dqs", "stbs-lbs", "stbs-dqs"):     # each kernel, each form
+        runs += [["deform", "{seeds}/SimpleSkin.gltf", "--pose", "{seeds}/pose.json",
+                  "--method", method, "-o", "o.npz"],
+                 ["deform", "{seeds}/wide.npz", "--pose", "{seeds}/any-pose.json",
+                  "--method", method, "-o", "o.npz"],
+                 ["animate", "{seeds}/SimpleSkin.gltf", "--motion", "{seeds}/clip.json",
+                  "--method", method, "-o", "o.npz"],
+                 ["animate", "{seeds}/wide.npz", "--motion", "{seeds}/wide-clip.json",
+                  "--method", method, "-o", "o.npz"]]
     out = [(argv, {}) for argv in runs]
     out.append((["animate", "--manifest", "manifest.json"],
                 {"manifest.json": json.dumps(manifest("{seeds}/")).encode()}))
