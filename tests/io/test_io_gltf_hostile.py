@@ -617,3 +617,26 @@ def test_deep_chains_of_nodes_are_read_in_linear_time(tmp_path):
     # the last part hangs 2000 steps of 0.001 above the tip's bind (the origin: the
     # skin has no inverse bind matrices)
     assert np.isclose(rig.V[-4:, 1].min(), parts * 0.001)
+
+
+@pytest.mark.parametrize("weights, match", [
+    ([1e308], r"positions of magnitude at most 1e\+12, found 1e\+308"),
+    (["a"], r"default morph.weights: 1 numbers, found \['a'\]"),
+    ([0.5, 0.5], "default morph.weights: 1 numbers"),
+    ([0.5], None),
+    ([1e308] * 2, "morph target offsets times their default weights that are finite, "
+                  "found an overflow"),
+])
+def test_default_morph_weights(tmp_path, weights, match):
+    def edit(d):
+        prim = d["meshes"][0]["primitives"][0]
+        prim["targets"] = [{"POSITION": prim["attributes"]["POSITION"]}] * (
+            2 if weights == [1e308] * 2 else 1)
+        d["meshes"][0]["weights"] = weights
+        d["accessors"][prim["attributes"]["POSITION"]]["max"] = [1e308] * 3
+
+    path = _gltf(tmp_path, edit)
+    if match is None:
+        assert np.allclose(read_gltf(path)[0].V[1], [1.5, 0, 0])
+    else:
+        _refused(path, match)

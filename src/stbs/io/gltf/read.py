@@ -226,20 +226,25 @@ def _triangles(f: GltfFile, prim: dict, what: str, n: int) -> np.ndarray | None:
 def _morphed(f: GltfFile, prim: dict, node: dict, mesh: dict, V: np.ndarray, what: str):
     """POSITION with the default morph weights (the node's, else the mesh's) applied."""
     targets = f.get(prim, "targets", "array", what, [])
-    w = node.get("weights", mesh.get("weights"))
-    if not targets or not isinstance(w, list) or not any(
-            isinstance(x, (int, float)) and x for x in w):
+    src = node if "weights" in node else mesh
+    if not targets or "weights" not in src:
         return V
-    if len(w) != len(targets):
-        raise f.error(f"{what}: {len(targets)} default morph weights", str(len(w)))
+    w = f.numbers(src, "weights", len(targets), f"{what}'s default morph", ())
+    if not any(w):
+        return V
     V = V.copy()
-    for t, (tgt, wt) in enumerate(zip(targets, w, strict=True)):
-        if wt and isinstance(tgt, dict) and "POSITION" in tgt:
-            d = read_accessor(f, tgt["POSITION"], f"{what} target {t} POSITION",
-                              types=("VEC3",), components=_positions(f))
-            if d.shape != V.shape:
-                raise f.error(f"{what} target {t}: {len(V)} POSITION offsets", str(len(d)))
-            V += float(wt) * d
+    with np.errstate(over="ignore", invalid="ignore"):
+        for t, (tgt, wt) in enumerate(zip(targets, w, strict=True)):
+            if wt and isinstance(tgt, dict) and "POSITION" in tgt:
+                d = read_accessor(f, tgt["POSITION"], f"{what} target {t} POSITION",
+                                  types=("VEC3",), components=_positions(f))
+                if d.shape != V.shape:
+                    raise f.error(f"{what} target {t}: {len(V)} POSITION offsets",
+                                  str(len(d)))
+                V += wt * d
+    if not np.isfinite(V).all():
+        raise f.error(f"{what}: morph target offsets times their default weights that "
+                      "are finite", "an overflow (weights or offsets too large)")
     return V
 
 
