@@ -133,20 +133,12 @@ class Skeleton:
             own = np.flatnonzero(parents == np.arange(b))
             if own.size:
                 raise ValueError(f"P: {label(int(own[0]))} is its own parent")
-        # Topological order by depth; a cycle shows up as a chain longer than b.
-        depth = np.full(b, -1, dtype=np.int64)
-        for i in range(b):
-            chain = []
-            k = i
-            while k >= 0 and depth[k] < 0:
-                chain.append(k)
-                if len(chain) > b:
-                    raise ValueError(f"{'BE' if P is None else 'P'}: {label(i)} lies on a "
-                                     "cycle of bones")
-                k = parents[k]
-            base = -1 if k < 0 else depth[k]
-            for m, c in enumerate(reversed(chain)):
-                depth[c] = base + 1 + m
+        # Topological order by depth; a bone no root reaches lies on (or under) a cycle.
+        depth = tree_depths(parents)
+        if (depth < 0).any():
+            i = _on_cycle(parents, depth)
+            raise ValueError(f"{'BE' if P is None else 'P'}: {label(i)} lies on a cycle of "
+                             "bones")
         has = parents >= 0
         connected = np.zeros(b, dtype=bool)
         connected[has] = BE[has, 0] == BE[parents[has], 1]
@@ -234,3 +226,35 @@ class Skeleton:
     def __repr__(self) -> str:
         return (f"Skeleton({self.n_joints} joints, {self.n_bones} bones, {self.dim}D, "
                 f"{self.roots.size} root{'s' if self.roots.size != 1 else ''})")
+
+
+def tree_depths(parents) -> np.ndarray:
+    """The depth of each node of a forest given by its parents (-1 for a root): 0 for a
+    root, 1 for its children and so on; -1 for a node no root reaches (one on a cycle,
+    or below one). One walk down from the roots: linear however deep the tree."""
+    p = np.asarray(parents, dtype=np.int64).tolist()
+    n = len(p)
+    kids: list[list[int]] = [[] for _ in range(n)]
+    for i, q in enumerate(p):
+        if 0 <= q < n:
+            kids[q].append(i)
+    depth = [-1] * n
+    stack = [i for i, q in enumerate(p) if q < 0]
+    for i in stack:
+        depth[i] = 0
+    while stack:
+        k = stack.pop()
+        for c in kids[k]:
+            depth[c] = depth[k] + 1
+            stack.append(c)
+    return np.array(depth, dtype=np.int64)
+
+
+def _on_cycle(parents: np.ndarray, depth: np.ndarray) -> int:
+    """A node on a cycle, given the depths of :func:`tree_depths` (some are -1)."""
+    k = int(np.flatnonzero(depth < 0)[0])
+    seen = set()
+    while k not in seen:        # walking up from an unreached node ends on its cycle
+        seen.add(k)
+        k = int(parents[k])
+    return k

@@ -136,3 +136,32 @@ def test_scaled_joints_warn_and_are_dropped():
         clip = clip_from_joint_matrices(sk, [0.0], M)
     np.testing.assert_allclose(clip.pose(0.0).rotations, np.tile(np.eye(3), (2, 1, 1)),
                                atol=1e-12)
+
+
+def test_tree_depths_and_cycles():
+    from stbs.skeleton import tree_depths
+
+    np.testing.assert_array_equal(tree_depths([-1, 0, 0, 2, -1, 4]), [0, 1, 1, 2, 0, 1])
+    np.testing.assert_array_equal(tree_depths(np.arange(-1, 9999)), np.arange(10_000))
+    # a cycle (1 -> 2 -> 1) and a node under it are reached from no root
+    np.testing.assert_array_equal(tree_depths([-1, 2, 1, 2]), [0, -1, -1, -1])
+    with pytest.raises(ValueError, match=r"P: bone [01] \(.*\) lies on a cycle of bones"):
+        stbs.Skeleton(np.eye(3) * [1, 2, 3], [[0, 1], [1, 2]], P=[1, 0])
+
+
+def test_a_chain_of_thousands_of_joints_at_one_place():
+    """5000 joints stacked at one place above a root (a hostile file's chain): each
+    continues the direction from the last joint elsewhere, found in one pass (it was a
+    walk up from every joint, joints x depth steps), and the tree is checked in one
+    pass too."""
+    j = 5000
+    J = np.zeros((j, 3))
+    J[1:, 1] = 1.0
+    sk = skeleton_from_joints(J, np.arange(-1, j - 1), [f"j{i}" for i in range(j)])
+    assert sk.n_bones == j
+    np.testing.assert_allclose(sk.axes[1:], np.tile([0, 1.0, 0], (j - 1, 1)), atol=1e-12)
+    np.testing.assert_array_equal(sk.depth, np.arange(j))
+    parent = np.arange(-1, j - 1)
+    parent[0] = j - 1                                     # the chain closed on itself
+    with pytest.raises(ValueError, match="lies on or under a cycle of joints"):
+        skeleton_from_joints(J, parent, [f"j{i}" for i in range(j)])

@@ -32,7 +32,7 @@ import numpy as np
 from .. import _checks
 from ..clip import Clip
 from ..pose import local_arrays
-from ..skeleton import Skeleton
+from ..skeleton import Skeleton, tree_depths
 from .model import Rig
 
 __all__ = ["skeleton_from_joints", "rig_from_joints", "clip_from_joint_matrices",
@@ -65,15 +65,8 @@ def _first_hits(O: np.ndarray, D: np.ndarray, V: np.ndarray, F: np.ndarray) -> n
 
 
 def _subtree_sizes(parent: np.ndarray) -> np.ndarray:
-    j = parent.size
-    size = np.ones(j, dtype=np.int64)
-    depth = np.zeros(j, dtype=np.int64)
-    for i in range(j):
-        k, n = parent[i], 0
-        while k >= 0 and n <= j:
-            k, n = parent[k], n + 1
-        depth[i] = n
-    for i in np.argsort(-depth, kind="stable"):
+    size = np.ones(parent.size, dtype=np.int64)
+    for i in np.argsort(-tree_depths(parent), kind="stable"):
         if parent[i] >= 0:
             size[parent[i]] += size[i]
     return size
@@ -86,13 +79,10 @@ def _check_parents(parent, j: int) -> np.ndarray:
         i = int(bad[0])
         raise ValueError(f"parent: joint {i} has parent {int(parent[i])}; expected -1 or "
                          f"another joint in 0..{j - 1}")
-    for i in range(j):           # a cycle never reaches a root
-        k, n = i, 0
-        while k >= 0:
-            k, n = parent[k], n + 1
-            if n > j:
-                raise ValueError(f"parent: joint {i} lies on a cycle of joints; the joints "
-                                 "must form a tree (or a forest)")
+    lost = np.flatnonzero(tree_depths(parent) < 0)       # a cycle never reaches a root
+    if lost.size:
+        raise ValueError(f"parent: joint {int(lost[0])} lies on or under a cycle of joints; "
+                         "the joints must form a tree (or a forest)")
     return parent
 
 
@@ -140,15 +130,20 @@ def skeleton_from_joints(J, parent, names: Sequence[str], *, V=None, F=None, W=N
     BE = np.zeros((j, 2), dtype=np.int64)
     BE[:, 0] = np.arange(j)
     leaves, dirs, base = [], [], []
+    children: list[list[int]] = [[] for _ in range(j)]
+    for c, q in enumerate(parent.tolist()):
+        if q >= 0:
+            children[q].append(c)
+    # the nearest ancestor at another place than each joint (-1: none), parents first:
+    # a joint at its parent's place continues its grandparent's direction
+    away = np.full(j, -1, dtype=np.int64)
+    for i in np.argsort(tree_depths(parent), kind="stable"):
+        q = parent[i]
+        if q >= 0:
+            away[i] = q if np.linalg.norm(J[i] - J[q]) > tol else away[q]
     for i in range(j):
-        kids = [c for c in np.flatnonzero(parent == i) if np.linalg.norm(J[c] - J[i]) > tol]
-        up = J[i] - J[parent[i]] if parent[i] >= 0 else None
-        if up is not None and np.linalg.norm(up) <= tol:
-            # a joint at its parent's place: continue the grandparent's direction
-            k = parent[i]
-            while k >= 0 and np.linalg.norm(J[i] - J[k]) <= tol:
-                k = parent[k]
-            up = J[i] - J[k] if k >= 0 else None
+        kids = [c for c in children[i] if np.linalg.norm(J[c] - J[i]) > tol]
+        up = J[i] - J[away[i]] if away[i] >= 0 else None
         if kids:
             if up is not None:
                 u = up / np.linalg.norm(up)
