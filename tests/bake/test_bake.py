@@ -131,7 +131,7 @@ def test_frames_are_limited_before_any_work(rig, tmp_path, capsys, monkeypatch):
 
     n = len(rig.V)
     assert core.frame_limit(8300) == core.MAX_BAKE_BYTES // (12 * 8300) < 33_331
-    assert core.frame_limit(1) == stbs.clip.MAX_SAMPLES
+    assert core.frame_limit(1) == core.MAX_BAKE_FRAMES == 36_000
     assert core.frame_limit(10**9, max_frames=7) == 7
     with pytest.raises(ValueError, match="max_frames"):
         core.frame_limit(n, max_frames=0)

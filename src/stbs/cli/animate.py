@@ -62,7 +62,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--fps", type=float, help="sampling rate (default: the motion's)")
     p.add_argument("--max-frames", type=int, metavar="N",
                    help="bake at most N frames (default: as many as fit in 2 GiB of "
-                        "frames in memory, at most 100000); more is an error")
+                        "frames in memory, at most 36000); more is an error")
     p.add_argument("--animation", metavar="NAME",
                    help="glTF or FBX motion: the animation (stack) to bake")
     p.add_argument("--mapping", metavar="MAP.json",
