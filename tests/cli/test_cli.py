@@ -397,3 +397,49 @@ def test_script_deform_and_error(case):
 def test_script_help_exits_0():
     res = subprocess.run([_script(), "--help"], capture_output=True, text=True, timeout=60)
     assert res.returncode == 0 and "deform" in res.stdout
+
+
+@pytest.mark.parametrize("case", ["export over its rig", "animate over its motion",
+                                  "animate over its rig", "a hard link to the rig",
+                                  "a symbolic link to the motion", "weights over its rig",
+                                  "a glTF's buffer file"])
+def test_no_command_writes_over_a_file_it_reads(tmp_path, capsys, shared_data, case):
+    """Every command refuses, with one line and exit 2, an output that is one of its
+    inputs: the same path, a hard link (same inode), a symbolic link, or a file an input
+    names (a glTF's .bin); the input keeps its bytes."""
+    src = shared_data / "characters" / "gltf" / "Fox_separate"
+    for name in ("Fox.gltf", "Fox.bin"):
+        shutil.copy(src / name, tmp_path / name)
+    rig = tmp_path / "Fox.gltf"
+    clip = tmp_path / "clip.json"
+    assert main(["animate", str(rig), "--motion", str(rig), "--frames", "0:3",
+                 "-o", str(clip)]) == 0
+    (tmp_path / "hard.gltf").hardlink_to(rig)
+    (tmp_path / "soft.json").symlink_to(clip)
+    argv, victim = {
+        "export over its rig": (["export", str(rig), "-o", str(rig)], rig),
+        "animate over its motion": (["animate", str(rig), "--motion", str(clip), "-o",
+                                     str(clip)], clip),
+        "animate over its rig": (["animate", str(rig), "--motion", str(clip), "-o",
+                                  str(rig)], rig),
+        "a hard link to the rig": (["export", str(rig), "-o", str(tmp_path / "hard.gltf")],
+                                   rig),
+        "a symbolic link to the motion": (["animate", str(rig), "--motion", str(clip), "-o",
+                                           str(tmp_path / "soft.json")], clip),
+        "weights over its rig": (["weights", str(rig), "--endpoint", "projection", "-o",
+                                  str(rig)], rig),
+        # the character's buffer file renamed to what the bake would write
+        "a glTF's buffer file": (["animate", str(rig), "--motion", str(clip), "--frames",
+                                  "0:2", "-o", str(tmp_path / "frames.npz")],
+                                 tmp_path / "frames.npz"),
+    }[case]
+    if case == "a glTF's buffer file":
+        (tmp_path / "Fox.bin").rename(tmp_path / "frames.npz")
+        rig.write_text(rig.read_text().replace('"Fox.bin"', '"frames.npz"'))
+    before = {p.name: p.read_bytes() for p in tmp_path.iterdir() if p.is_file()}
+    capsys.readouterr()
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "refusing to write over a file this command reads" in err[0]
+    assert victim.read_bytes() == before[victim.name]
+    assert {p.name: p.read_bytes() for p in tmp_path.iterdir() if p.is_file()} == before
