@@ -93,7 +93,6 @@ class _Rig:
     E: Any
     W_src: str
     E_src: str | None
-    inputs: list[Path]
     E_flag: bool = False  # E came from --endpoint
     texture: Any = None   # a picture rig's picture and texture coordinates
     UV: Any = None
@@ -130,7 +129,7 @@ def _load(args) -> _Rig:
                               f"not both (got {args.rig!r} and {', '.join(given)})")
         rig = read_rig(args.rig, **character_options(args, mesh=pick))
         r = _Rig(rig.V, rig.F, rig.T, rig.skeleton, rig.W, rig.E, f"{args.rig} (W)",
-                 None if rig.E is None else f"{args.rig} (E)", [Path(args.rig)],
+                 None if rig.E is None else f"{args.rig} (E)",
                  texture=rig.texture, UV=rig.UV)
     else:
         missing = [k for k, v in files.items() if v is None]
@@ -140,13 +139,11 @@ def _load(args) -> _Rig:
         mesh = read_mesh(args.mesh)
         sk = read_skeleton(args.skeleton, dim=mesh.dim)
         W = read_weights(args.weights)
-        r = _Rig(mesh.V, mesh.F, mesh.T, sk, W, None, args.weights, None,
-                 [Path(args.mesh), Path(args.skeleton), Path(args.weights)])
+        r = _Rig(mesh.V, mesh.F, mesh.T, sk, W, None, args.weights, None)
     if args.endpoint is not None:
         r.E = read_weights(args.endpoint)
         r.E_src = args.endpoint
         r.E_flag = True
-        r.inputs.append(Path(args.endpoint))
     return r
 
 
