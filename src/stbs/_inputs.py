@@ -1,6 +1,7 @@
 """The files a run has read, so that no output of that run is written over one of them.
 
-A command (and the viewer, for its whole life) runs inside :func:`tracking`. Every
+A command runs inside :func:`tracking` (``stbs view`` for the server's whole life; a
+viewer server started from Python tracks each save, with its own inputs noted). Every
 reader notes the files it opens with :func:`note_input` (``input_path`` does it for the
 readers that go through it), and every writer asks :func:`check_output` before it
 writes (the atomic writers of :mod:`stbs.io._atomic` do). An output is refused when it
@@ -18,8 +19,8 @@ import threading
 from collections.abc import Iterator
 from pathlib import Path
 
-__all__ = ["tracking", "note_input", "check_output", "check_outputs", "SameFileError",
-           "inputs", "input_path"]
+__all__ = ["tracking", "note_input", "check_output", "SameFileError", "inputs",
+           "input_path"]
 
 _lock = threading.Lock()
 #: The runs being tracked (a stack: a command may run inside another's tracking).
@@ -82,12 +83,6 @@ def check_output(path: str | os.PathLike, what: str = "output") -> None:
             raise SameFileError(
                 f"{what} {os.fspath(path)!r}: refusing to write over a file this command "
                 f"reads{same}; choose another output path")
-
-
-def check_outputs(paths: list[str | os.PathLike | Path], what: str = "output") -> None:
-    """:func:`check_output` for each path."""
-    for p in paths:
-        check_output(p, what)
 
 
 def input_path(path: str | os.PathLike, what: str) -> Path:
