@@ -89,6 +89,14 @@ _WHAT = "an FBX file (binary or ASCII)"
 # each right after its matrices are read, which is safe with the references set right.
 _WORKER = r'''
 import gc, json, os, sys
+try:        # the address-space cap (argv[6]), set first: numpy and ufbx map ~1 GiB more
+    import resource
+    _cap = int(sys.argv[6]) + 2**30
+    _soft, _hard = resource.getrlimit(resource.RLIMIT_AS)
+    resource.setrlimit(resource.RLIMIT_AS, (
+        _cap if _hard == resource.RLIM_INFINITY else min(_cap, _hard), _hard))
+except (ImportError, ValueError, OSError):
+    pass
 gc.disable()
 import ctypes
 import numpy as np
@@ -266,23 +274,6 @@ MEMORY_FACTOR = 64
 TIMEOUT_BASE = 120.0
 
 
-def _limit_memory(nbytes: int):
-    """A ``preexec_fn`` capping the child's address space (where the OS allows)."""
-    def limit() -> None:
-        try:
-            import resource
-
-            # the interpreter, numpy and ufbx map ~1 GiB of address space before reading
-            cap = nbytes + 2**30
-            soft, hard = resource.getrlimit(resource.RLIMIT_AS)
-            if hard != resource.RLIM_INFINITY:
-                cap = min(cap, hard)
-            resource.setrlimit(resource.RLIMIT_AS, (cap, hard))
-        except (ImportError, ValueError, OSError):
-            pass
-    return limit if os.name == "posix" else None
-
-
 def _run_child(p: Path, anims: bool) -> tuple[dict, dict[str, np.ndarray]]:
     """The raw scene: the child's JSON record and arrays (see ``_WORKER``)."""
     require("ufbx", f"reading the FBX file {str(p)!r}")
@@ -295,10 +286,10 @@ def _run_child(p: Path, anims: bool) -> tuple[dict, dict[str, np.ndarray]]:
         memory = MEMORY_BASE + MEMORY_FACTOR * size
         try:
             proc = subprocess.run([sys.executable, "-c", _WORKER, str(p.resolve()), dst,
-                                   "1" if anims else "0", str(MAX_SAMPLES), str(memory // 2)],
+                                   "1" if anims else "0", str(MAX_SAMPLES), str(memory // 2),
+                                   str(memory)],
                                   cwd=tmp, capture_output=True, text=True, errors="replace",
-                                  check=False, timeout=TIMEOUT_BASE + size / 2**20,
-                                  preexec_fn=_limit_memory(memory))
+                                  check=False, timeout=TIMEOUT_BASE + size / 2**20)
         except subprocess.TimeoutExpired:
             raise FormatError(p, _WHAT, f"a file the FBX reader did not finish in "
                                         f"{TIMEOUT_BASE + size / 2**20:.0f} s (a hostile or "
