@@ -86,10 +86,11 @@ demo: install
 lint: install-test
 	$(BIN)/ruff check src tests benchmarks
 
-# The whole suite, slow tests included, with the docstring and README.md examples
+# The page's unit tests (node --test viewer/test), then the whole suite, slow tests included, with the docstring and README.md examples
 # (pyproject.toml: testpaths, --doctest-modules); then the wheel as users get it.
 # Quick loop: .venv/bin/python -m pytest -m "not slow" (docs/dev/testing.md).
 test: install-test lint
+	node --test viewer/test/
 	$(BIN)/python -m pytest -q --durations=20
 	@$(MAKE) --no-print-directory wheel-check
 

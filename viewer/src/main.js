@@ -14,35 +14,7 @@ import { Gizmo } from "./gizmo.js";
 import { PoseFiles } from "./posefiles.js";
 import { Timeline } from "./timeline.js";
 import { MESH_FRAGMENT, MESH_VERTEX, METHODS, TEXELS_PER_BONE } from "./skin.js";
-
-const TOKEN = new URLSearchParams(location.search).get("token") || "";
-const DTYPES = { float32: Float32Array, float64: Float64Array, uint8: Uint8Array,
-                 uint16: Uint16Array, uint32: Uint32Array, int32: Int32Array,
-                 int16: Int16Array, int8: Int8Array };
-
-async function api(path, options = {}) {
-  const headers = Object.assign({ "X-Stbs-Token": TOKEN }, options.headers || {});
-  const r = await fetch(path, Object.assign({}, options, { headers, cache: "no-store" }));
-  if (!r.ok) {
-    let msg = `${r.status}`;
-    try { msg = (await r.json()).error || msg; } catch (_) { /* not JSON */ }
-    const err = new Error(`${path}: ${msg}`);
-    err.status = r.status;
-    throw err;
-  }
-  return r;
-}
-
-async function apiJSON(path, options) {
-  return (await api(path, options)).json();
-}
-
-async function loadArray(desc) {
-  const r = await api(desc.url);
-  const Type = DTYPES[desc.dtype];
-  if (!Type) throw new Error(`${desc.url}: unsupported dtype ${desc.dtype}`);
-  return new Type(await r.arrayBuffer());
-}
+import { api, apiJSON, loadArray } from "./api.js";
 
 function toFloat32(a) {
   return a instanceof Float32Array ? a : Float32Array.from(a);
