@@ -18,8 +18,6 @@ function copyWorld(w) {
 export class PoseEditor {
   constructor(viewer) {
     this.v = viewer;
-    this.undoStack = [];
-    this.redoStack = [];
     this.drag = null;
     this.mode = "stretch";
     this.bones = new Bones(viewer);
@@ -32,53 +30,41 @@ export class PoseEditor {
     canvas.addEventListener("pointermove", (e) => this.onMove(e), { capture: true });
     canvas.addEventListener("pointerup", (e) => this.onUp(e), { capture: true });
     canvas.addEventListener("pointercancel", (e) => this.onUp(e), { capture: true });
-    window.addEventListener("keydown", (e) => this.onKey(e));
+    viewer.events.on("history", () => this.updateButtons());
     this.buildPanel();
   }
 
   // ------------------------------------------------------------------ undo / redo
-  /** Remember the pose before an edit (the pose object that made it). */
-  remember() {
-    this.undoStack.push(this.v.lastSent);
-    if (this.undoStack.length > 200) this.undoStack.shift();
-    this.redoStack.length = 0;
-    this.updateButtons();
+  /**
+   * Start an edit: a command on the one History (ctx.history) that sets the pose object
+   * the edit last sent (execute, redo) or the one before it (undo). The pose shown is
+   * a function of the pose object (the server's), so both restore it exactly. Returns
+   * the command; set its `after` as the edit goes on.
+   */
+  begin(name) {
+    const v = this.v, before = v.lastSent;
+    const cmd = { name, before, after: before,
+                  execute: () => v.send(cmd.after).then(() => this.showBone()),
+                  undo: () => v.send(cmd.before).then(() => this.showBone()) };
+    this.v.history.push(cmd);
+    return cmd;
   }
 
-  undo() { return this.step(this.undoStack, this.redoStack); }
-
-  redo() { return this.step(this.redoStack, this.undoStack); }
-
-  /** Pop a pose from one stack, push the current one on the other, show it. */
-  step(from, to) {
-    const prev = this.op || Promise.resolve();
-    this.op = prev.then(async () => {
-      await (this.v.sending || null);
-      if (!from.length) return null;
-      const pose = from.pop();
-      to.push(this.v.lastSent);
-      await this.v.send(pose);
-      this.showBone();
-      this.updateButtons();
-      return this.v.getPose();
-    });
-    const mine = this.op;
-    mine.finally(() => { if (this.op === mine) this.op = null; }).catch(() => {});
-    return mine;
+  /** Send a pose as part of the edit `cmd`. */
+  sendFor(cmd, pose) {
+    cmd.after = JSON.parse(JSON.stringify(pose));
+    return this.v.send(pose);
   }
 
-  onKey(e) {
-    if (!(e.ctrlKey || e.metaKey) || e.key.toLowerCase() !== "z") return;
-    const t = e.target;
-    if (t && (t.tagName === "INPUT" || t.tagName === "SELECT") && t.type !== "range") return;
-    e.preventDefault();
-    (e.shiftKey ? this.redo() : this.undo()).catch(() => {});
-  }
+  undo() { return this.v.history.undo().then(() => this.v.getPose()); }
+
+  redo() { return this.v.history.redo().then(() => this.v.getPose()); }
 
   updateButtons() {
+    const h = this.v.history;
     const u = document.getElementById("undo"), r = document.getElementById("redo");
-    if (u) u.disabled = !this.undoStack.length;
-    if (r) r.disabled = !this.redoStack.length;
+    if (u) u.disabled = !h.canUndo;
+    if (r) r.disabled = !h.canRedo;
   }
 
   // ------------------------------------------------------------------ dragging
@@ -169,8 +155,8 @@ export class PoseEditor {
       edited = d.kind === "ik" ? this.bones.ikJoint(w, d.joint, at) : this.bones.stretchJoint(w, d.joint, at);
     }
     if (!edited) return;
-    if (!d.moved) { this.remember(); d.moved = true; }
-    this.v.send(this.bones.poseObject(edited).pose);
+    if (!d.moved) { d.cmd = this.begin(d.kind === "gizmo" ? "turn bone" : `drag joint (${d.kind})`); d.moved = true; }
+    this.sendFor(d.cmd, this.bones.poseObject(edited).pose);
   }
 
   onUp(e) {
@@ -242,7 +228,7 @@ export class PoseEditor {
     const s = Number(document.getElementById("stretch").value);
     this.showValues();
     if (!this.sliding) {
-      this.remember();
+      this.slideCmd = this.begin("slider");
       this.sliding = true;
       this.slideBase = this.bones.fkObject(this.bones.world());
     }
@@ -254,7 +240,7 @@ export class PoseEditor {
       pose.twist = Object.assign({}, pose.twist, { [name]: [start, t] });
       if (start === 0 && t === 0) delete pose.twist[name];
     }
-    return this.v.send(pose);
+    return this.sendFor(this.slideCmd, pose);
   }
 
   /**
@@ -276,18 +262,21 @@ export class PoseEditor {
     if (typeof degrees !== "number" || !Number.isFinite(degrees)) {
       throw new Error(`degrees: expected a finite number, got ${JSON.stringify(degrees)}`);
     }
-    await this.v.idle();
+    await this.v.settled();
     const w = b.rotateBone(b.world(), i, axis, degrees / DEG);
-    this.remember();
-    await this.v.send(b.poseObject(w).pose);
-    this.showBone();
+    await this.v.history.execute(this.command("turn bone", b.poseObject(w).pose));
     return this.v.getPose();
   }
 
+  /** A command setting the pose object `pose` (undo: the pose object before). */
+  command(name, pose) {
+    const v = this.v, before = v.lastSent, after = JSON.parse(JSON.stringify(pose));
+    return { name, before, after,
+             execute: () => v.send(after).then(() => this.showBone()),
+             undo: () => v.send(before).then(() => this.showBone()) };
+  }
+
   reset() {
-    this.remember();
-    const sent = this.v.send({});
-    sent.then(() => this.showBone());
-    return sent;
+    return this.v.history.execute(this.command("reset pose", {}));
   }
 }

@@ -15,6 +15,10 @@ import { PoseFiles } from "./posefiles.js";
 import { Timeline } from "./timeline.js";
 import { MESH_FRAGMENT, MESH_VERTEX, METHODS, TEXELS_PER_BONE } from "./skin.js";
 import { api, apiJSON, loadArray } from "./api.js";
+import { Events } from "./events.js";
+import { History } from "./history.js";
+import { Store } from "./store.js";
+import { Keys } from "./keys.js";
 
 function toFloat32(a) {
   return a instanceof Float32Array ? a : Float32Array.from(a);
@@ -57,6 +61,21 @@ function status(text, isError = false) {
 }
 
 class Viewer {
+  constructor() {
+    // the context every module gets (docs/viewer.md): the one store, events, history,
+    // keyboard shortcuts and the drawing services (view)
+    this.events = new Events();
+    this.store = new Store(this.events);
+    this.history = new History(this.events);
+    this.keys = new Keys(window);
+    this.view = makeView(this);
+    this.ctx = Object.freeze({ store: this.store, events: this.events, history: this.history,
+                               keys: this.keys, view: this.view });
+  }
+
+  /** The pose object that gives the pose shown (the store's). */
+  get lastSent() { return this.store.poseObject; }
+
   async load() {
     const info = await apiJSON("/api/rig");
     this.summary = info;
@@ -78,11 +97,17 @@ class Viewer {
     const parents = info.parents || [], hang = info.hang || [], connected = info.connected || [];
     this.links = [];
     parents.forEach((p, i) => { if (p >= 0 && connected[i] === false) this.links.push([i, p, hang[i] ?? 0]); });
+    this.store.setRig({ dim: this.dim, n: this.n, b: this.b, V: arrays.V, F: arrays.F || null,
+                        C: arrays.C, BE: arrays.BE, restC: C64, rest: this.rest,
+                        parents: parents.map(Number), connected, hang, links: this.links,
+                        names: Array.from({ length: this.b }, (_, i) => (info.names && info.names[i] != null
+                          ? String(info.names[i]) : String(i))),
+                        summary: info });
+    if (arrays.W && arrays.E) this.store.setWeights(toFloat32(arrays.W), toFloat32(arrays.E));
     this.boneData = new Float32Array(4 * TEXELS_PER_BONE * this.b);
     this.methodIndex = Math.max(0, METHODS.indexOf(info.method));
     this.buildScene();
-    await this.fetchPose();
-    this.lastSent = await this.getPose();   // the pose object that gives the current pose
+    this.showArrays(await apiJSON("/api/pose/bones"), await this.getPose());
     this.compile();
     this.buildUI();
     this.editor = new PoseEditor(this);
@@ -91,6 +116,7 @@ class Viewer {
     this.gizmo = new Gizmo(this, this.editor.bones);
     this.poseFiles = new PoseFiles(this, apiJSON, status);
     this.timeline = new Timeline(this, api, status);
+    this.registerKeys();
     if (info.clip) {        // started with a clip (stbs view RIG --motion FILE): on the timeline
       await this.timeline.open(await apiJSON("/api/clip"));
     }
@@ -258,13 +284,17 @@ class Viewer {
     }
   }
 
-  async fetchPose() {
-    this.showArrays(await apiJSON("/api/pose/bones"));
+  async fetchPose(object = undefined) {
+    this.showArrays(await apiJSON("/api/pose/bones"), object);
   }
 
-  /** Upload a pose's per-bone arrays {rotations, origins, stretch, twist} (not drawn yet). */
-  showArrays(arrays) {
-    this.poseArrays = arrays;
+  /** The pose's per-bone arrays as the store holds them. */
+  get poseArrays() { return this.store.pose; }
+
+  /** Upload a pose's per-bone arrays {rotations, origins, stretch, twist} (not drawn yet);
+   * `object`: the pose object that gives them, where known. */
+  showArrays(arrays, object = undefined) {
+    this.store.setPose(arrays, object);
     packBones(this.rest, arrays, this.dim, this.boneData);
     this.boneTexture.needsUpdate = true;
     const segs = this.skeletonLines.geometry.attributes.position;
@@ -293,6 +323,13 @@ class Viewer {
   /** The viewport under a page point. */
   viewRectAt(x, y) {
     return this.compare ? this.compare.rectAt(x, y) : this.viewRect();
+  }
+
+  /** The page's own shortcuts (keys.js): undo and redo, play, frame, mode, mirror. */
+  registerKeys() {
+    const k = this.keys, report = (what) => (err) => status(`${what}: ${err.message}`, true);
+    k.register({ key: "Ctrl+Z", label: "undo", run: () => this.history.undo().catch(report("undo")) });
+    k.register({ key: "Ctrl+Shift+Z", label: "redo", run: () => this.history.redo().catch(report("redo")) });
   }
 
   buildUI() {
@@ -330,15 +367,14 @@ class Viewer {
   async postPose(pose) {
     const reply = await apiJSON("/api/pose", {
       method: "POST", headers: { "Content-Type": "application/json" }, body: JSON.stringify(pose) });
-    this.lastSent = JSON.parse(JSON.stringify(pose));
-    await this.fetchPose();
+    await this.fetchPose(pose);
     this.render();
     return reply.pose;
   }
 
   /** The scripting API's setPose: after any edit in flight, then frame the posed mesh. */
   async setPose(pose) {
-    await this.idle();
+    await this.settled();
     const back = await this.postPose(pose);
     this.frame();
     return back;
@@ -361,11 +397,17 @@ class Viewer {
     return this.sending;
   }
 
-  /** Resolves once no edit (a sent pose, an undo or redo) is in flight. */
+  /** Resolves once no sent pose is in flight (an edit's; undo and redo wait with settled()). */
   async idle() {
-    while (this.sending || (this.editor && this.editor.op)) {
-      await Promise.all([this.sending, this.editor && this.editor.op].map((p) => p && p.catch(() => {})));
-    }
+    while (this.sending) await this.sending.catch(() => {});
+  }
+
+  /** Resolves once no edit, undo or redo is in flight. */
+  async settled() {
+    do {
+      await this.history.idle();
+      await this.idle();
+    } while (this.sending);
   }
 
   /** Posed joint positions (j x 3; rest position for a joint of no bone). */
@@ -461,6 +503,22 @@ class Viewer {
   }
 }
 
+/** The drawing services modules get as ctx.view (the Viewer's, read live). */
+function makeView(v) {
+  const view = {};
+  for (const k of ["renderer", "scene", "camera", "controls", "mesh", "material", "feedback",
+                   "diag", "boneData"]) {
+    Object.defineProperty(view, k, { get: () => v[k], enumerable: true });
+  }
+  for (const f of ["render", "viewRect", "viewRectAt", "skinned", "toScreen", "posedJoints",
+                   "frame", "resize"]) {
+    view[f] = (...args) => v[f](...args);
+  }
+  /** Turn the camera's orbit, pan and zoom off (during a drag) or back on. */
+  view.setOrbit = (on) => { v.controls.enabled = !!on; };
+  return Object.freeze(view);
+}
+
 document.getElementById("fallback")?.remove();
 const viewer = new Viewer();
 const ready = viewer.load().then(() => {
@@ -493,11 +551,15 @@ window.stbsViewer = Object.freeze({
     return out;
   }),
   jointScreenPositions: whenReady(() => viewer.jointScreenPositions()),
-  idle: whenReady(() => viewer.idle().then(() => undefined)),
+  idle: whenReady(() => viewer.settled().then(() => undefined)),
   undo: whenReady(() => viewer.editor.undo()),
   redo: whenReady(() => viewer.editor.redo()),
-  canUndo: () => !!viewer.editor && viewer.editor.undoStack.length > 0,
-  canRedo: () => !!viewer.editor && viewer.editor.redoStack.length > 0,
+  canUndo: () => viewer.history.canUndo,
+  canRedo: () => viewer.history.canRedo,
+  history: () => ({ undo: viewer.history.undos.map((c) => c.name), redo: viewer.history.redos.map((c) => c.name) }),
+  store: () => ({ selection: Object.assign({}, viewer.store.selection), mode: viewer.store.mode,
+                  mirror: viewer.store.mirror }),
+  shortcuts: () => viewer.keys.shortcuts(),
   // posing tools: drag modes, the rotation gizmo, side by side, pose files
   setDragMode: whenReady((mode) => viewer.editor.setDragMode(mode)),
   dragMode: () => (viewer.editor ? viewer.editor.mode : "stretch"),

@@ -34,7 +34,7 @@ export class PoseFiles {
 
   /** Save the current pose as `name` (null: the server's next free name); resolves to {path, name}. */
   async save(name = null, overwrite = false) {
-    await this.v.idle();
+    await this.v.settled();
     const body = { pose: this.v.lastSent };
     if (name !== null && name !== undefined) body.name = name;
     if (overwrite) body.overwrite = true;
@@ -51,7 +51,7 @@ export class PoseFiles {
 
   /** The current pose as pose-file text (the server's canonical form, bones by name). */
   async text() {
-    await this.v.idle();
+    await this.v.settled();
     return JSON.stringify(await this.v.getPose(), null, 1) + "\n";
   }
 
@@ -77,13 +77,12 @@ export class PoseFiles {
       this.status(`load pose: ${e.message}`, true);
       throw e;
     }
-    await this.v.idle();
-    const editor = this.v.editor, before = this.v.lastSent;
+    await this.v.settled();
+    const before = this.v.lastSent, v = this.v;
     try {
-      const back = await this.v.setPose(obj);
-      editor.undoStack.push(before);
-      editor.redoStack.length = 0;
-      editor.updateButtons();
+      const back = await v.setPose(obj);
+      const after = v.lastSent;
+      v.history.push({ name: "load pose", execute: () => v.send(after), undo: () => v.send(before) });
       this.status(`loaded the pose from ${label}`);
       return back;
     } catch (err) {

@@ -262,8 +262,7 @@ export class Timeline {
   show(t) {
     const run = async () => {
       const reply = await this.withClip((id) => this.apiJSON(`/api/clip/${id}/pose`, this.post({ time: t })));
-      this.v.lastSent = copy(reply.pose);
-      await this.v.fetchPose();
+      await this.v.fetchPose(reply.pose);
       this.v.render();
       this.time = t;
       this.updateBar();
