@@ -37,6 +37,7 @@ export function setBoneWeight(W, b, v, i, t, opts = {}) {
   if (!(share > 0) || freeOthers === 0) return false;
   if (t > share) t = share;
   if (t < 0) t = 0;
+  if (Math.fround(t) === W[o + i]) return false;
   const row = opts.scratch && opts.scratch.length >= 2 * b ? opts.scratch : new Float64Array(2 * b);
   for (let j = 0; j < b; j++) row[j] = W[o + j];
   row[i] = t;
