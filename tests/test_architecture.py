@@ -15,13 +15,15 @@ Walks every import statement in ``src/stbs`` (lazy ones inside functions too) wi
 from __future__ import annotations
 
 import ast
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
 
 SRC = Path(__file__).resolve().parents[1] / "src" / "stbs"
 
-MATHS = {"_checks", "_optional", "_jit", "_json", "_inputs", "geometry", "transforms",
+MATHS = {"_checks", "_optional", "_jit", "_json", "_inputs", "methods", "geometry", "transforms",
          "skeleton", "pose", "clip", "motion", "retargeting", "skinning", "weights", "meshing",
          "shapes"}
 DATA = {"rig", "io"}
@@ -116,3 +118,27 @@ def test_the_walk_catches_what_it_should(tmp_path, monkeypatch, source, expect):
     (root / "meshing" / "bad.py").write_text(source)
     monkeypatch.setattr(__import__(__name__), "SRC", root)
     assert any(expect in v for v in violations()), violations()
+
+
+def test_the_file_formats_load_without_the_compiled_kernels():
+    # the io writers take baked frames; stbs.bake skins them, so reading and writing
+    # files never pays for numba
+    code = "import sys, stbs.io, stbs.io.gltf; print('numba' in sys.modules)"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         check=True)
+    assert out.stdout.strip() == "False", out.stdout + out.stderr
+
+
+def test_the_four_heaviest_bones_are_chosen_in_one_place():
+    # glTF, OpenUSD, the viewer and the bake all take stbs.skinning.layout.four_heaviest,
+    # so a vertex's four bones (and the tie rule among equal weights) agree everywhere
+    found = []
+    for path, parts in _modules():
+        if parts[:2] == ["stbs", "skinning"]:
+            continue
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            if isinstance(node, ast.Call) and getattr(node.func, "id",
+                                                      getattr(node.func, "attr", None)) \
+                    == "top_k" and any(k.arg == "max_influences" for k in node.keywords):
+                found.append(f"{path.relative_to(SRC)}:{node.lineno}")
+    assert not found, f"use four_heaviest instead of top_k(max_influences=...) at {found}"

@@ -7,7 +7,7 @@ import pytest
 from bake_fixtures import arm_bvh, arm_rig, clip_json
 
 import stbs
-from stbs.bake import bake, frame_times, load_motion
+from stbs.bake import bake, bake_frames, export, frame_times, load_motion
 from stbs.cli import main
 
 
@@ -59,6 +59,10 @@ def test_folder_and_glb_outputs(tmp_path, rig):
     d = stbs.io.gltf.read_accessor(f, targets[5]["POSITION"], "t")
     dfm = stbs.Deformer(rig.V, rig.skeleton, rig.W, rig.E, method="stbs-lbs")
     np.testing.assert_allclose(rig.V + d, dfm(clip.pose(1.0)), atol=1e-5)
+    anim = f.doc["animations"][0]
+    assert anim["name"] == "baked stbs-lbs"
+    t = stbs.io.gltf.read_accessor(f, anim["samplers"][0]["input"], "t").ravel()
+    np.testing.assert_allclose(t, [0, 0.2, 0.4, 0.6, 0.8, 1.0], atol=1e-6)
     with pytest.raises(ValueError, match="expected .npz, .glb, .gltf or a folder"):
         bake(rig, clip, tmp_path / "x.obj")
 
@@ -161,3 +165,41 @@ def test_an_hour_at_a_huge_fps_is_refused_before_sampling(rig, tmp_path):
         frame_times(clip, fps=1e6)
     with pytest.raises(ValueError, match="are sampled"):
         clip.sample_times(1e300)
+
+
+def test_bake_frames_are_the_deformer_frames(tmp_path, rig):
+    clip = stbs.io.read_clip(clip_json(tmp_path / "c.json", rig), rig.skeleton)
+    times = clip.sample_times()[[0, 4, 7]]
+    U = bake_frames(rig, clip, times, method="dqs")
+    assert U.shape == (3, len(rig.V), 3) and U.dtype == np.float64
+    dfm = stbs.Deformer(rig.V, rig.skeleton, rig.W, rig.E, method="dqs")
+    for k, t in enumerate(times):
+        np.testing.assert_array_equal(U[k], dfm(clip.pose(float(t))))
+    assert len(bake_frames(rig, clip, method="lbs")) == len(clip.sample_times())
+    with pytest.raises(ValueError, match="method must be one of"):
+        bake_frames(rig, clip, method="fast")
+
+
+def test_export_bakes_the_clip_into_the_file(tmp_path, rig):
+    clip = stbs.io.read_clip(clip_json(tmp_path / "c.json", rig), rig.skeleton)
+    path = tmp_path / "arm.glb"
+    export(path, rig, clip, bake="stbs-dqs")
+    f = stbs.io.gltf.GltfFile(path)
+    targets = f.doc["meshes"][0]["primitives"][0]["targets"]
+    dfm = stbs.Deformer(rig.V, rig.skeleton, rig.W, rig.E, method="stbs-dqs")
+    times = clip.sample_times()
+    assert len(targets) == len(times)
+    for k in (0, len(times) // 2, len(times) - 1):
+        d = stbs.io.gltf.read_accessor(f, targets[k]["POSITION"], "t")
+        np.testing.assert_allclose(rig.V + d, dfm(clip.pose(float(times[k]))), atol=1e-5)
+    export(tmp_path / "plain.gltf", rig, clip)          # no bake: the joints move
+    doc = stbs.io.gltf.GltfFile(tmp_path / "plain.gltf").doc
+    assert "targets" not in doc["meshes"][0]["primitives"][0]
+    assert doc["animations"][0]["name"] == "clip"
+    with pytest.raises(ValueError, match="bake needs a clip"):
+        export(tmp_path / "x.glb", rig, bake="lbs")
+    with pytest.raises(ValueError, match="method must be one of"):
+        export(tmp_path / "x.glb", rig, clip, bake="fast")
+    with pytest.raises(ValueError, match="expected a path ending in .gltf, .glb"):
+        export(tmp_path / "x.obj", rig, clip, bake="lbs")
+    assert not list(tmp_path.glob("x.*"))

@@ -114,19 +114,24 @@ def test_a_clip_plays_as_our_lbs(tmp_path, rig, clip):
     assert [r["errors"] for r in validate(path)] == [0]
 
 
-def test_a_baked_clip_holds_the_deformer_frames(tmp_path, rig, clip):
+def _frames(rig, clip, method):
+    dfm = stbs.Deformer(rig.V, rig.skeleton, rig.W, rig.E, method=method)
+    return [dfm(clip.pose(float(t))) for t in clip.sample_times()]
+
+
+def test_baked_frames_are_written_as_morph_targets(tmp_path, rig, clip):
     path = tmp_path / "baked.glb"
-    write_gltf(path, rig, clip, bake="stbs-dqs")
+    frames = _frames(rig, clip, "stbs-dqs")
+    write_gltf(path, rig, clip, bake="stbs-dqs", frames=frames)
     f = GltfFile(path)
     mesh = f.doc["meshes"][0]
     targets = mesh["primitives"][0]["targets"]
     times = clip.sample_times()
     assert len(targets) == len(times) and mesh["weights"] == [0.0] * len(times)
-    dfm = stbs.Deformer(rig.V, rig.skeleton, rig.W, rig.E, method="stbs-dqs")
+    assert f.doc["animations"][0]["name"] == "baked stbs-dqs"
     V32 = rig.V.astype(np.float32)
-    for t, tgt in zip(times, targets, strict=True):
+    for U, tgt in zip(frames, targets, strict=True):
         d = read_accessor(f, tgt["POSITION"], "target")
-        U = dfm(clip.pose(float(t)))
         np.testing.assert_allclose(V32 + d.astype(np.float32), U, atol=2e-6 * _diag(rig.V))
     # the weights channel shows frame k alone at its time
     anim = f.doc["animations"][0]
@@ -204,7 +209,7 @@ def test_every_file_validates_with_no_warnings(tmp_path, rig, clip):
     paths = [tmp_path / "a.glb", tmp_path / "b.gltf", tmp_path / "c.glb"]
     write_gltf(paths[0], rig)
     write_gltf(paths[1], rig, clip)
-    write_gltf(paths[2], rig, clip, bake="lbs")
+    write_gltf(paths[2], rig, clip, bake="lbs", frames=_frames(rig, clip, "lbs"))
     reports = validate(*paths)
     assert [(r["errors"], r["warnings"]) for r in reports] == [(0, 0)] * 3, reports
 
@@ -225,13 +230,50 @@ def test_errors(tmp_path, rig, clip):
                     W=np.ones((3, 1)))
     with pytest.raises(ValueError, match="glTF holds 3D rigs"):
         write_gltf(tmp_path / "x.glb", flat)
-    with pytest.raises(ValueError, match="bake needs a clip"):
-        write_gltf(tmp_path / "x.glb", rig, bake="lbs")
+    frames = [rig.V] * len(clip.sample_times())
+    with pytest.raises(ValueError, match="bake needs a clip or times="):
+        write_gltf(tmp_path / "x.glb", rig, bake="lbs", frames=frames)
     with pytest.raises(ValueError, match="bake must be one of"):
-        write_gltf(tmp_path / "x.glb", rig, clip, bake="fast")
+        write_gltf(tmp_path / "x.glb", rig, clip, bake="fast", frames=frames)
+    with pytest.raises(ValueError, match="bake='lbs' needs frames="):
+        write_gltf(tmp_path / "x.glb", rig, clip, bake="lbs")
+    with pytest.raises(ValueError, match="frames need bake="):
+        write_gltf(tmp_path / "x.glb", rig, clip, frames=frames)
+    with pytest.raises(ValueError, match=r"one mesh per time \(2\), got 3"):
+        write_gltf(tmp_path / "x.glb", rig, bake="lbs", frames=frames[:3], times=[0, 1])
+    with pytest.raises(ValueError, match="times must be finite and increasing"):
+        write_gltf(tmp_path / "x.glb", rig, bake="lbs", frames=frames[:2], times=[1, 0])
+    with pytest.raises(ValueError, match=r"each must have shape"):
+        write_gltf(tmp_path / "x.glb", rig, bake="lbs", frames=[rig.V[:-1]], times=[0])
     other = stbs.Clip([(0.0, stbs.Pose.rest(stbs.Skeleton([[0, 0, 0], [0, 0, 1]], [[0, 1]])))])
     with pytest.raises(ValueError, match="clip must be of the rig's skeleton"):
         write_gltf(tmp_path / "x.glb", rig, other)
     with pytest.raises(ValueError, match="supported extensions are .gltf, .glb"):
         write_gltf(tmp_path / "x.obj", rig)
     assert not list(tmp_path.iterdir())
+
+
+def test_the_four_heaviest_bones_by_hand(tmp_path):
+    # six bones; ties among equal weights go to the lower bone index, the weights are
+    # renormalised over the four kept and rounded to 16 bits summing to 65535
+    C = [[float(i), 0.0, 0.0] for i in range(7)]
+    sk = stbs.Skeleton(C, [[i, i + 1] for i in range(6)])
+    W = np.array([[0.1, 0.2, 0.3, 0.2, 0.2, 0.0],
+                  [0.0, 0.0, 0.0, 0.0, 0.5, 0.5],
+                  [1.0, 0.0, 0.0, 0.0, 0.0, 0.0]])
+    E = np.array([[0.9, 0.1, 0.2, 0.3, 0.4, 0.0],
+                  [0.0, 0.0, 0.0, 0.0, 0.7, 0.8],
+                  [0.5, 0.0, 0.0, 0.0, 0.0, 0.0]])
+    rig = stbs.Rig(V=[[0, 0, 0], [1, 0, 0], [0, 1, 0.0]], F=[[0, 1, 2]], skeleton=sk, W=W, E=E)
+    path = tmp_path / "ties.gltf"
+    write_gltf(path, rig)
+    f = GltfFile(path)
+    attrs = f.doc["meshes"][0]["primitives"][0]["attributes"]
+    assert read_accessor(f, attrs["JOINTS_0"], "j").tolist() == [
+        [2, 1, 3, 4], [4, 5, 0, 0], [0, 0, 0, 0]]
+    q = np.rint(read_accessor(f, attrs["WEIGHTS_0"], "w") * 65535).astype(int)
+    assert q.tolist() == [[21845, 14564, 14563, 14563], [32768, 32767, 0, 0],
+                          [65535, 0, 0, 0]]
+    e = read_accessor(f, attrs["_ENDPOINT_WEIGHTS_0"], "e")
+    np.testing.assert_allclose(e, [[0.2, 0.1, 0.3, 0.4], [0.7, 0.8, 0, 0], [0.5, 0, 0, 0]],
+                               atol=1e-7)

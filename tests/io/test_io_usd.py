@@ -57,14 +57,20 @@ def test_usd_skins_the_clip_as_we_do(tmp_path, rig, clip, skinning, method):
     assert stage.GetTimeCodesPerSecond() == 5 and stage.GetEndTimeCode() == len(times) - 1
 
 
+def _frames(rig, clip, method):
+    dfm = stbs.Deformer(rig.V, rig.skeleton, rig.W, rig.E, method=method)
+    return [dfm(clip.pose(float(t))) for t in clip.sample_times()]
+
+
 def test_the_baked_points_cache(tmp_path, rig, clip):
     path = tmp_path / "baked.usdc"
-    write_usd(path, rig, clip, bake="stbs-dqs")
+    frames = _frames(rig, clip, "stbs-dqs")
+    write_usd(path, rig, clip, bake="stbs-dqs", frames=frames)
     stage = Usd.Stage.Open(str(path))
     baked = UsdGeom.Mesh(stage.GetPrimAtPath("/Baked")).GetPointsAttr()
-    dfm = stbs.Deformer(rig.V, rig.skeleton, rig.W, rig.E, method="stbs-dqs")
-    for k, t in enumerate(clip.sample_times()):
-        np.testing.assert_allclose(np.array(baked.Get(k)), dfm(clip.pose(float(t))), atol=1e-5)
+    assert stage.GetPrimAtPath("/Baked").GetCustomDataByKey("stbs:method") == "stbs-dqs"
+    for k, U in enumerate(frames):
+        np.testing.assert_allclose(np.array(baked.Get(k)), U, atol=1e-5)
     E = UsdGeom.PrimvarsAPI(stage.GetPrimAtPath("/Rig/Mesh")).GetPrimvar(
         "stbs:endpointWeights")
     assert E.GetElementSize() == 4 and len(E.Get()) == 4 * len(rig.V)
@@ -73,7 +79,8 @@ def test_the_baked_points_cache(tmp_path, rig, clip):
 def test_usd_validators_find_nothing(tmp_path, rig, clip):
     ctx = UsdValidation.ValidationContext(
         UsdValidation.ValidationRegistry().GetOrLoadAllValidators())
-    for name, kw in (("a.usda", {}), ("b.usdc", {"clip": clip, "bake": "lbs"}),
+    baked = {"clip": clip, "bake": "lbs", "frames": _frames(rig, clip, "lbs")}
+    for name, kw in (("a.usda", {}), ("b.usdc", baked),
                      ("c.usd", {"clip": clip})):
         write_usd(tmp_path / name, rig, **kw)
         assert list(ctx.Validate(Usd.Stage.Open(str(tmp_path / name)))) == [], name
@@ -103,8 +110,15 @@ def test_stbs_export_usd_and_errors(tmp_path, rig, clip, capsys):
     capsys.readouterr()
     assert main(["export", str(rp), "--skinning", "dqs", "-o", str(tmp_path / "a.glb")]) == 2
     assert "--skinning applies to OpenUSD" in capsys.readouterr().err
+    frames = [rig.V] * len(clip.sample_times())
     with pytest.raises(ValueError, match="bake needs a clip"):
-        write_usd(tmp_path / "x.usda", rig, bake="lbs")
+        write_usd(tmp_path / "x.usda", rig, bake="lbs", frames=frames)
+    with pytest.raises(ValueError, match="bake='lbs' needs frames="):
+        write_usd(tmp_path / "x.usda", rig, clip, bake="lbs")
+    with pytest.raises(ValueError, match="frames need bake="):
+        write_usd(tmp_path / "x.usda", rig, clip, frames=frames)
+    with pytest.raises(ValueError, match="one mesh per sampled time"):
+        write_usd(tmp_path / "x.usda", rig, clip, bake="lbs", frames=frames[1:])
     with pytest.raises(ValueError, match="supported extensions are .usda, .usdc, .usd"):
         write_usd(tmp_path / "x.obj", rig)
     assert not (tmp_path / "x.usda").exists()

@@ -2,7 +2,9 @@
 
 The rig's :class:`stbs.Deformer` is built once, so each frame costs the skinning only;
 the frames are written as one ``.npz`` (``U`` (k, n, d) float32), a folder of meshes,
-or a ``.glb``/``.gltf`` whose morph targets play them in any glTF viewer.
+or a ``.glb``/``.gltf`` whose morph targets play them in any glTF viewer. Baking lives
+here alone: the file writers of :mod:`stbs.io` take frames already computed
+(:func:`bake_frames`), and :func:`export` writes a rig with its clip baked.
 """
 
 from __future__ import annotations
@@ -19,16 +21,29 @@ from pathlib import Path
 
 import numpy as np
 
+from .._optional import require
 from ..clip import MAX_SAMPLES, Clip
-from ..io import atomic_open, read_bvh, read_clip, read_fbx, read_gltf, write_gltf, write_mesh
+from ..io import (
+    GLTF_EXTENSIONS,
+    USD_EXTENSIONS,
+    atomic_open,
+    read_bvh,
+    read_clip,
+    read_fbx,
+    read_gltf,
+    write_gltf,
+    write_mesh,
+    write_usd,
+)
+from ..methods import SKINNING_METHODS as METHODS
 from ..retargeting import retarget
 from ..rig import Rig
-from ..skinning import METHODS, Deformer
+from ..skinning import Deformer
 
 __all__ = ["load_motion", "frame_times", "frame_limit", "MAX_BAKE_BYTES", "MAX_BAKE_FRAMES",
            "clip_frames",
-           "bake", "Baked", "MOTION_EXTENSIONS", "MESH_FOLDER_FORMATS", "write_frames",
-           "output_kind"]
+           "bake", "bake_frames", "export", "Baked", "MOTION_EXTENSIONS",
+           "MESH_FOLDER_FORMATS", "write_frames", "output_kind"]
 
 MOTION_EXTENSIONS = (".bvh", ".gltf", ".glb", ".fbx", ".json")
 MESH_FOLDER_FORMATS = (".obj", ".ply", ".off")
@@ -222,9 +237,7 @@ def write_frames(out: str | os.PathLike, rig: Rig, clip: Clip, times: np.ndarray
             f.write(data)
         return p
     if kind == "gltf":
-        step = float(np.median(np.diff(times))) if len(times) > 1 else 1.0 / clip.fps
-        sel = Clip([(float(t), clip.pose(float(t))) for t in times], fps=1.0 / step)
-        write_gltf(p, rig, sel, bake=method, frames=list(frames))
+        write_gltf(p, rig, bake=method, frames=frames, times=times)
         return p
     ext = mesh_format if mesh_format.startswith(".") else f".{mesh_format}"
     if ext not in MESH_FOLDER_FORMATS:
@@ -288,20 +301,36 @@ def bake(rig: Rig, clip: Clip, out: str | os.PathLike, *, method: str = "stbs-dq
         The most frames baked (default: as many as fit in :data:`MAX_BAKE_BYTES`, at
         most :data:`MAX_BAKE_FRAMES`); more is a ValueError before any work.
     """
-    if method not in METHODS:
-        raise ValueError(f"method must be one of {', '.join(METHODS)}, got {method!r}")
+    _check_method(method)
     if clip.skeleton != rig.skeleton:
         raise ValueError("clip must be of the rig's skeleton")
     output_kind(out)                                  # fail before any work
     n = len(rig.V)
     times = frame_times(clip, fps=fps, frames=frames, limit=frame_limit(n, max_frames),
                         n_vertices=n)
+    t0 = time.perf_counter()
+    U, skin = _skin(rig, clip, times, method=method, dtype=dtype, progress=progress)
+    total = time.perf_counter() - t0
+    path = write_frames(out, rig, clip, times, U, method, mesh_format=mesh_format)
+    return Baked(path, len(times), skin, total)
+
+
+def _check_method(method) -> str:
+    if method not in METHODS:
+        raise ValueError(f"method must be one of {', '.join(METHODS)}, got {method!r}")
+    return method
+
+
+def _skin(rig: Rig, clip: Clip, times: np.ndarray, *, method: str, dtype=None,
+          progress: Callable[[int, int], None] | None = None) -> tuple[np.ndarray, float]:
+    """The frames (k, n, d) of ``clip`` at ``times`` skinned by ``method`` (float32, or
+    ``dtype`` when it is float64), and the seconds spent in the skinning alone."""
     dfm = Deformer(rig.V, rig.skeleton, rig.W, rig.E, method=method, dtype=dtype)
     n, d = rig.V.shape
-    U = np.empty((len(times), n, 3), dtype=np.float32)    # 3 columns: the kernels' layout
+    out = np.float64 if dfm.dtype == np.float64 else np.float32
+    U = np.empty((len(times), n, 3), dtype=out)    # 3 columns: the kernels' layout
     U.fill(0)        # commit the output's pages now: writing them is the output's cost
     skin = 0.0
-    t0 = time.perf_counter()
     for a in range(0, len(times), _POSE_BATCH):     # poses evaluated a batch at a time
         for k, pose in enumerate(clip.poses(times[a:a + _POSE_BATCH]), start=a):
             s = time.perf_counter()
@@ -309,6 +338,58 @@ def bake(rig: Rig, clip: Clip, out: str | os.PathLike, *, method: str = "stbs-dq
             skin += time.perf_counter() - s
             if progress is not None:
                 progress(k + 1, len(times))
-    total = time.perf_counter() - t0
-    path = write_frames(out, rig, clip, times, U[:, :, :d], method, mesh_format=mesh_format)
-    return Baked(path, len(times), skin, total)
+    return U[:, :, :d], skin
+
+
+def bake_frames(rig: Rig, clip: Clip, times=None, *, method: str = "stbs-dqs",
+                dtype=None) -> np.ndarray:
+    """The rig's mesh skinned by ``method`` at each of ``times`` of ``clip``.
+
+    Parameters
+    ----------
+    rig : Rig
+    clip : Clip
+        Of the rig's skeleton.
+    times : (k,) float, optional
+        Default ``clip.sample_times()``.
+    method : {"lbs", "dqs", "stbs-lbs", "stbs-dqs"}
+    dtype : float32 or float64, optional
+        The :class:`stbs.Deformer`'s (default: float32 for a float32 mesh, else float64).
+
+    Returns
+    -------
+    (k, n, d) float
+        The deformed positions, frame by frame.
+    """
+    _check_method(method)
+    if not isinstance(clip, Clip) or clip.skeleton != rig.skeleton:
+        raise ValueError("clip must be a stbs.Clip of the rig's skeleton")
+    times = clip.sample_times() if times is None else np.asarray(times, dtype=np.float64)
+    return _skin(rig, clip, times, method=method, dtype=dtype)[0]
+
+
+def export(path: str | os.PathLike, rig: Rig, clip: Clip | None = None, *,
+           bake: str | None = None, skinning: str = "lbs") -> None:
+    """Write a rig (and its clip) as glTF (``.glb``, ``.gltf``) or OpenUSD (``.usda``,
+    ``.usdc``, ``.usd``), with the clip baked by ``bake`` at ``clip.sample_times()``
+    (:func:`stbs.io.write_gltf`'s morph targets, :func:`stbs.io.write_usd`'s points cache).
+
+    ``skinning`` is the OpenUSD mesh's ``skel:skinningMethod`` (``"lbs"`` or ``"dqs"``).
+    """
+    ext = Path(os.fspath(path)).suffix.lower()
+    usd = ext in USD_EXTENSIONS
+    if not usd and ext not in GLTF_EXTENSIONS:         # fail before any work
+        raise ValueError(f"export: expected a path ending in "
+                         f"{', '.join(GLTF_EXTENSIONS + USD_EXTENSIONS)}, got "
+                         f"{os.fspath(path)!r}")
+    if usd:
+        require("pxr", "writing OpenUSD")
+    if bake is not None and clip is None:
+        raise ValueError("bake needs a clip: the animation to bake")
+    frames = None
+    if bake is not None:
+        frames = bake_frames(rig, clip, method=_check_method(bake))
+    if usd:
+        write_usd(path, rig, clip, bake=bake, skinning=skinning, frames=frames)
+    else:
+        write_gltf(path, rig, clip, bake, frames=frames)

@@ -12,8 +12,9 @@ Layout of the stage (``upAxis`` Y, ``metersPerUnit`` 1)::
                     (the four heaviest bones, elementSize 4), skel:skinningMethod
                     (classicLinear, or dualQuaternion when asked), and the endpoint
                     weights as primvars:stbs:endpointWeights (elementSize 4, aligned)
-    /Baked          Mesh with time-sampled points: what ``bake=METHOD`` computes at
-                    each frame, stretch and twist included (with a clip and ``bake``)
+    /Baked          Mesh with time-sampled points: the frames ``bake=METHOD`` computed,
+                    stretch and twist included (with a clip, ``bake`` and ``frames``;
+                    :func:`stbs.bake.export` skins the clip and writes them)
 
 Time codes are frames at the clip's rate (``timeCodesPerSecond`` = ``clip.fps``),
 frame 0 at the clip's start.
@@ -30,9 +31,10 @@ from .. import transforms as tf
 from .._optional import require
 from ..clip import Clip
 from ..geometry import boundary_faces
+from ..methods import SKINNING_METHODS
 from ..pose import local_transforms
 from ..rig.model import Rig
-from ..skinning import METHODS, Deformer, top_k
+from ..skinning.layout import four_heaviest
 from ._atomic import atomic_save
 from ._parse import suffix
 
@@ -64,7 +66,7 @@ def _joint_paths(names: list[str], parents: np.ndarray) -> list[str]:
 
 
 def write_usd(path: str | os.PathLike, rig: Rig, clip: Clip | None = None, *,
-              bake: str | None = None, skinning: str = "lbs") -> None:
+              bake: str | None = None, skinning: str = "lbs", frames=None) -> None:
     """Write a 3D rig as OpenUSD (UsdSkel); see the module docs for the layout.
 
     Parameters
@@ -76,9 +78,12 @@ def write_usd(path: str | os.PathLike, rig: Rig, clip: Clip | None = None, *,
         Written as the skeleton's ``SkelAnimation`` (rotations and posed starts: what
         linear or dual-quaternion skinning of rigid joints shows), sampled at its rate.
     bake : {"lbs", "dqs", "stbs-lbs", "stbs-dqs"}, optional
-        With ``clip``: also write that method's deformation per frame as ``/Baked``.
+        With ``clip`` and ``frames``: the method that computed ``frames``, written per
+        frame as ``/Baked``.
     skinning : {"lbs", "dqs"}
         The mesh's ``skel:skinningMethod``: ``classicLinear`` or ``dualQuaternion``.
+    frames : sequence of (n, 3) float, optional
+        With ``bake``: the deformed positions at each of ``clip.sample_times()``.
     """
     suffix(path, USD_EXTENSIONS, "write_usd")
     if not isinstance(rig, Rig):
@@ -87,21 +92,42 @@ def write_usd(path: str | os.PathLike, rig: Rig, clip: Clip | None = None, *,
         raise ValueError(f"USD skeletons are 3D; got a {rig.dim}D rig")
     if skinning not in ("lbs", "dqs"):
         raise ValueError(f"skinning must be 'lbs' or 'dqs', got {skinning!r}")
-    if bake is not None and bake not in METHODS:
-        raise ValueError(f"bake must be one of {', '.join(METHODS)}, got {bake!r}")
-    if bake is not None and clip is None:
-        raise ValueError("bake needs a clip: the animation to bake")
     if clip is not None and (not isinstance(clip, Clip) or clip.skeleton != rig.skeleton):
         raise ValueError("clip must be a stbs.Clip of the rig's skeleton")
+    frames = _check_frames(rig, clip, bake, frames)
     F = rig.F if rig.F is not None else (boundary_faces(rig.T, rig.V)
                                          if rig.T is not None else None)
     if F is None or len(F) == 0:
         raise ValueError("write_usd needs triangles (rig.F) or tetrahedra (rig.T)")
     require("pxr", "writing OpenUSD")
-    atomic_save(path, lambda tmp: _write(tmp, rig, np.asarray(F), clip, bake, skinning))
+    atomic_save(path, lambda tmp: _write(tmp, rig, np.asarray(F), clip, bake, skinning,
+                                                 frames))
 
 
-def _write(tmp: str, rig: Rig, F: np.ndarray, clip, bake, skinning) -> None:
+def _check_frames(rig: Rig, clip, bake, frames) -> list[np.ndarray] | None:
+    """The frames as float32 (n, 3) arrays, one per ``clip.sample_times()``."""
+    if bake is None and frames is None:
+        return None
+    if bake not in SKINNING_METHODS:
+        raise ValueError("frames need bake=: the method that computed them" if bake is None
+                         else f"bake must be one of {', '.join(SKINNING_METHODS)}, "
+                              f"got {bake!r}")
+    if clip is None:
+        raise ValueError("bake needs a clip: the animation to bake")
+    if frames is None:
+        raise ValueError(f"bake={bake!r} needs frames=: the positions that method computes "
+                         f"at each time (stbs.bake.export skins a clip and writes them)")
+    k = len(clip.sample_times())
+    if len(frames) != k:
+        raise ValueError(f"frames must hold one mesh per sampled time ({k}), got {len(frames)}")
+    out = [np.asarray(U, dtype=np.float32) for U in frames]
+    for U in out:
+        if U.shape != rig.V.shape:
+            raise ValueError(f"frames: each must have shape {rig.V.shape}, got {U.shape}")
+    return out
+
+
+def _write(tmp: str, rig: Rig, F: np.ndarray, clip, bake, skinning, frames) -> None:
     from pxr import Gf, Sdf, Usd, UsdGeom, UsdSkel, Vt
 
     sk = rig.skeleton
@@ -135,9 +161,8 @@ def _write(tmp: str, rig: Rig, F: np.ndarray, clip, bake, skinning) -> None:
                                          Gf.Vec3f(*map(float, V.max(0)))]))
     binding = UsdSkel.BindingAPI.Apply(mesh.GetPrim())
     binding.CreateSkeletonRel().SetTargets([skel.GetPath()])
-    layout = top_k(rig.W, rig.E, max_influences=4, pad=(4,))
-    idx, w = layout.idx.T.astype(np.int32), layout.w.T
-    w = w / w.sum(axis=1, keepdims=True)
+    idx, w, e = four_heaviest(rig.W, rig.E)
+    idx = idx.astype(np.int32)
     binding.CreateJointIndicesPrimvar(False, 4).Set(Vt.IntArray(idx.ravel().tolist()))
     binding.CreateJointWeightsPrimvar(False, 4).Set(
         Vt.FloatArray.FromNumpy(w.ravel().astype(np.float32)))
@@ -148,8 +173,7 @@ def _write(tmp: str, rig: Rig, F: np.ndarray, clip, bake, skinning) -> None:
         pv = UsdGeom.PrimvarsAPI(mesh).CreatePrimvar("stbs:endpointWeights",
                                                      Sdf.ValueTypeNames.FloatArray,
                                                      UsdGeom.Tokens.vertex, 4)
-        pv.Set(Vt.FloatArray.FromNumpy(np.where(w > 0, layout.e.T, 0).ravel()
-                                       .astype(np.float32)))
+        pv.Set(Vt.FloatArray.FromNumpy(e.ravel().astype(np.float32)))
     if clip is not None:
         times = clip.sample_times()
         poses = [clip.pose(float(t)) for t in times]
@@ -173,15 +197,13 @@ def _write(tmp: str, rig: Rig, F: np.ndarray, clip, bake, skinning) -> None:
             tra.Set(Vt.Vec3fArray.FromNumpy(LT[k].astype(np.float32)), k)
         UsdSkel.BindingAPI.Apply(skel.GetPrim()).CreateAnimationSourceRel().SetTargets(
             [anim.GetPath()])
-        if bake is not None:
-            dfm = Deformer(V, sk, rig.W, rig.E, method=bake)
+        if frames is not None:
             baked = UsdGeom.Mesh.Define(stage, "/Baked")
             baked.CreateFaceVertexCountsAttr(Vt.IntArray([3] * len(F)))
             baked.CreateFaceVertexIndicesAttr(Vt.IntArray(F.ravel().astype(int).tolist()))
             baked.CreateSubdivisionSchemeAttr(UsdGeom.Tokens.none)
             pts, ext = baked.CreatePointsAttr(), baked.CreateExtentAttr()
-            for k, p in enumerate(poses):
-                U = np.asarray(dfm(p), dtype=np.float32)
+            for k, U in enumerate(frames):
                 pts.Set(Vt.Vec3fArray.FromNumpy(U), k)
                 ext.Set(Vt.Vec3fArray([Gf.Vec3f(*map(float, U.min(0))),
                                        Gf.Vec3f(*map(float, U.max(0)))]), k)

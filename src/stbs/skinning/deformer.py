@@ -7,13 +7,13 @@ from typing import Literal
 import numpy as np
 
 from .. import _checks
+from ..methods import SKINNING_METHODS as METHODS
 from ..pose import Pose
 from ..skeleton import Skeleton
 from . import _frame, _kernels
 from .layout import top_k
 
 Method = Literal["lbs", "dqs", "stbs-lbs", "stbs-dqs"]
-METHODS: tuple[str, ...] = ("lbs", "dqs", "stbs-lbs", "stbs-dqs")
 
 
 class Deformer:

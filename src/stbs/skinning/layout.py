@@ -120,3 +120,49 @@ def top_k(W, E=None, *, max_influences: int | None = None, dtype=np.float64,
         e = np.ascontiguousarray(e.T, dtype=dtype)
     return TopK(idx=np.ascontiguousarray(idx.T, dtype=_index_dtype(b)),
                 w=np.ascontiguousarray(w.T, dtype=dtype), e=e)
+
+
+#: Bones per vertex in the formats that carry a fixed count (glTF ``JOINTS_0``, UsdSkel
+#: ``elementSize 4``, the viewer's ``I4``/``W4``/``E4``).
+FOUR = 4
+
+
+def four_heaviest(W, E=None) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+    """Per vertex the four heaviest bones, their weights renormalised, and their endpoint
+    weights: the one layout every file writer, the viewer and the bake share.
+
+    The bones are those of :func:`top_k` with ``max_influences=4`` (heaviest first; among
+    equal weights the lower bone index first), so every consumer breaks ties alike.
+
+    Parameters
+    ----------
+    W : (n, b) ndarray or scipy.sparse
+        Bone weights.
+    E : (n, b) ndarray or scipy.sparse, optional
+        Endpoint weights.
+
+    Returns
+    -------
+    I4 : (n, 4) int64
+        Bone indices, heaviest first; an empty slot names bone 0.
+    W4 : (n, 4) float64
+        Their weights, each row renormalised in float64 to sum to 1 (a row of zeros
+        stays zero); 0 in an empty slot.
+    E4 : (n, 4) float64 or None
+        Their endpoint weights clipped to [0, 1], 0 in an empty slot; None without ``E``.
+
+    Examples
+    --------
+    >>> I4, W4, _ = four_heaviest(np.array([[0.1, 0.2, 0.3, 0.2, 0.2]]))
+    >>> I4.tolist(), W4.round(3).tolist()
+    ([[2, 1, 3, 4]], [[0.333, 0.222, 0.222, 0.222]])
+    """
+    layout = top_k(W, E, max_influences=FOUR, pad=(FOUR,))
+    I4 = layout.idx.T.astype(np.int64)
+    W4 = layout.w.T.astype(np.float64)
+    s = W4.sum(axis=1, keepdims=True)
+    W4 = np.where(s > 0, W4 / np.where(s > 0, s, 1.0), 0.0)
+    E4 = None
+    if layout.e is not None:
+        E4 = np.where(W4 > 0, np.clip(layout.e.T, 0.0, 1.0), 0.0)
+    return np.ascontiguousarray(I4), np.ascontiguousarray(W4), E4

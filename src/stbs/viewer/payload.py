@@ -18,12 +18,13 @@ import scipy.sparse as sp
 
 from .. import _checks
 from ..rig import Rig
-from ..skinning import METHODS, top_k
+from ..skinning import METHODS, four_heaviest
+from ..skinning.layout import FOUR
 
 __all__ = ["RigPayload", "MAX_INFLUENCES", "ARRAY_DOCS"]
 
 #: Bones per vertex in ``I4``/``W4``/``E4`` (a vec4 attribute each).
-MAX_INFLUENCES = 4
+MAX_INFLUENCES = FOUR
 
 #: Name -> meaning of every array the payload can serve (those the rig lacks are absent).
 ARRAY_DOCS = {
@@ -134,14 +135,10 @@ class RigPayload:
         return _le(boundary_faces(self.rig.T, self.rig.V), np.uint32)
 
     def _top4(self) -> dict[str, np.ndarray]:
-        layout = top_k(self.W, self.E, max_influences=MAX_INFLUENCES, pad=(MAX_INFLUENCES,))
-        idx, w, e = layout.idx.T, layout.w.T, layout.e.T     # (n, 4) each
-        # top_k renormalises only rows it truncates; do every row in float64 so that
-        # the float32 rows sum to 1 to rounding whatever the input's rounding was.
-        w = w / w.sum(axis=1, keepdims=True)
+        idx, w, e = four_heaviest(self.W, self.E)            # (n, 4) each
         b = self.rig.skeleton.n_bones
         out = {"I4": _le(idx, np.uint16 if b <= 65536 else np.int32),
-               "W4": _le(w, np.float32), "E4": _le(np.clip(e, 0.0, 1.0), np.float32)}
+               "W4": _le(w, np.float32), "E4": _le(e, np.float32)}
         self._cache.update(out)
         return out
 

@@ -19,10 +19,11 @@ What is written
   (LINEAR, STEP or CUBICSPLINE), so the file plays exactly as ``clip.pose(t)`` at any
   time; a clip with stretch or twist is sampled at ``clip.fps`` (``bake=`` carries
   those).
-- ``bake=METHOD``: what that method computes, stretch and twist included, as one morph
-  target per sampled frame (the displacement from the rest mesh) and a ``weights``
+- ``bake=METHOD, frames=``: positions that method computed (stretch and twist included),
+  one morph target per frame (the displacement from the rest mesh) and a ``weights``
   animation that shows frame k alone at its time; the joints stay at rest, so any glTF
-  viewer plays the STBS animation as computed.
+  viewer plays the STBS animation as computed. This module only writes the frames:
+  :func:`stbs.bake.export` skins a clip and writes it so.
 """
 
 from __future__ import annotations
@@ -37,9 +38,10 @@ import numpy as np
 from ... import transforms as tf
 from ...clip import Clip
 from ...geometry import boundary_faces, vertex_normals
+from ...methods import SKINNING_METHODS
 from ...pose import local_transforms
 from ...rig.model import Rig
-from ...skinning import METHODS, Deformer, top_k
+from ...skinning.layout import four_heaviest
 from .._atomic import atomic_open
 from .._parse import suffix
 from .accessors import (
@@ -90,15 +92,14 @@ def quantize_weights(w: np.ndarray, total: int = 65535) -> np.ndarray:
 def skin_attributes(blob: AccessorWriter, W, E, n_joints: int) -> dict[str, int]:
     """``JOINTS_0``, ``WEIGHTS_0`` (and ``_ENDPOINT_WEIGHTS_0`` with ``E``) accessors of
     each vertex's four heaviest columns of ``W`` (n, n_joints)."""
-    layout = top_k(W, E, max_influences=4, pad=(4,))
-    idx, w = layout.idx.T, layout.w.T                 # (n, 4) each
+    idx, w, e = four_heaviest(W, E)                    # (n, 4) each
     q = quantize_weights(w)
     idx = np.where(q > 0, idx, 0)          # unused slots name joint 0, as the spec asks
     out = {"JOINTS_0": blob.add(idx, UBYTE if n_joints <= 256 else USHORT, "VEC4",
                                 target=ARRAY_BUFFER),
            "WEIGHTS_0": blob.add(q, USHORT, "VEC4", target=ARRAY_BUFFER, normalized=True)}
     if E is not None:
-        out["_ENDPOINT_WEIGHTS_0"] = blob.add(np.where(q > 0, layout.e.T, 0.0), FLOAT, "VEC4",
+        out["_ENDPOINT_WEIGHTS_0"] = blob.add(np.where(q > 0, e, 0.0), FLOAT, "VEC4",
                                               target=ARRAY_BUFFER)
     return out
 
@@ -190,7 +191,7 @@ def _sampled(blob: AccessorWriter, clip: Clip, first: int) -> dict:
 
 
 def write_gltf(path: str | os.PathLike, rig: Rig, clip: Clip | None = None,
-               bake: str | None = None, *, frames=None) -> None:
+               bake: str | None = None, *, frames=None, times=None) -> None:
     """Write a 3D rig as glTF 2.0 (``.glb``, or ``.gltf`` with its buffer embedded).
 
     Parameters
@@ -201,20 +202,21 @@ def write_gltf(path: str | os.PathLike, rig: Rig, clip: Clip | None = None,
         3D, with triangles (or tetrahedra, whose boundary is written).
     clip : Clip, optional
         An animation of the rig's skeleton: written as joint rotations and
-        translations (see the module docs).
+        translations (see the module docs); with ``frames``, the default of ``times``.
     bake : {"lbs", "dqs", "stbs-lbs", "stbs-dqs"}, optional
-        With ``clip``: bake that method's deformation at each sampled frame as morph
-        targets played by a ``weights`` animation (then the joints stay at rest).
-    frames : sequence of (n, 3) float, keyword-only, optional
-        With ``bake``: the deformed positions at each of ``clip.sample_times()``,
-        already computed (by a :class:`stbs.Deformer` of that method); default: computed
-        here.
+        The method that computed ``frames``: they are written as morph targets played
+        by a ``weights`` animation (then the joints stay at rest).
+        :func:`stbs.bake.export` computes them and calls this.
+    frames : sequence of (n, 3) float, keyword-only
+        With ``bake``: the deformed positions, one mesh per time.
+    times : (k,) float, keyword-only, optional
+        The frames' times in seconds (default ``clip.sample_times()``).
 
     Raises
     ------
     ValueError
-        A 2D rig, no triangles, a clip of another skeleton, ``bake`` without a clip or
-        naming no method, a path of another extension.
+        A 2D rig, no triangles, a clip of another skeleton, ``bake`` naming no method or
+        without frames, frames of another shape or count, a path of another extension.
     """
     suffix(path, GLTF_EXTENSIONS, "write_gltf")
     if not isinstance(rig, Rig):
@@ -222,28 +224,66 @@ def write_gltf(path: str | os.PathLike, rig: Rig, clip: Clip | None = None,
     if rig.dim != 3:
         raise ValueError(f"glTF holds 3D rigs; got a {rig.dim}D rig")
     clip = _check_clip(clip, rig)
-    if bake is not None and bake not in METHODS:
-        raise ValueError(f"bake must be one of {', '.join(METHODS)}, got {bake!r}")
-    if bake is not None and clip is None:
-        raise ValueError("bake needs a clip: the animation to bake")
+    baked = _check_frames(rig, clip, bake, frames, times) if bake is not None or \
+        frames is not None else None
     F = rig.F if rig.F is not None else (boundary_faces(rig.T, rig.V)
                                          if rig.T is not None else None)
     if F is None or len(F) == 0:
         raise ValueError("write_gltf needs triangles (rig.F) or tetrahedra (rig.T)")
-    sk = rig.skeleton
     V = np.asarray(rig.V, dtype=np.float64)
-    b = sk.n_bones
     blob = AccessorWriter()
     attrs = {"POSITION": blob.add(V, FLOAT, "VEC3", target=ARRAY_BUFFER, minmax=True),
              "NORMAL": blob.add(vertex_normals(V, F), FLOAT, "VEC3", target=ARRAY_BUFFER)}
-    attrs.update(skin_attributes(blob, rig.W, rig.E, b))
+    attrs.update(skin_attributes(blob, rig.W, rig.E, rig.skeleton.n_bones))
     prim: dict[str, Any] = {"attributes": attrs, "mode": 4,
                             "indices": blob.add(np.asarray(F).ravel(), UINT, "SCALAR",
                                                 target=ELEMENT_ARRAY_BUFFER)}
     mesh: dict[str, Any] = {"name": "mesh", "primitives": [prim]}
+    nodes, skin = _joint_nodes(blob, rig.skeleton)
+    first = len(nodes) - rig.skeleton.n_bones
+    animations = []
+    if baked is not None:
+        animations.append(_morph_frames(blob, mesh, V, *baked, method=bake))
+    elif clip is not None:
+        rigid = bool(np.all(clip.stretch == 1) and not np.any(clip.twist))
+        animations.append(_keyed(blob, clip, first) if rigid else _sampled(blob, clip, first))
+    doc: dict[str, Any] = {
+        "asset": {"version": "2.0", "generator": "stbs"},
+        "scene": 0, "scenes": [{"nodes": [0, 1]}],
+        "nodes": nodes, "meshes": [mesh], "skins": [skin],
+        "accessors": blob.accessors, "bufferViews": blob.views,
+    }
+    if animations:
+        doc["animations"] = animations
+    save_gltf_document(path, doc, blob.blob())
 
-    # joint nodes: bone i's node at a_i, under its parent bone's node
-    A = sk.A
+
+def _check_frames(rig: Rig, clip: Clip | None, bake, frames, times):
+    """``(times, frames)`` checked: ``bake`` names a method, one (n, 3) mesh per time."""
+    if bake not in SKINNING_METHODS:
+        what = "frames need bake=: the method that computed them" if bake is None else \
+            f"bake must be one of {', '.join(SKINNING_METHODS)}, got {bake!r}"
+        raise ValueError(what)
+    if frames is None:
+        raise ValueError(f"bake={bake!r} needs frames=: the positions that method computes "
+                         f"at each time (stbs.bake.export skins a clip and writes them)")
+    if times is None:
+        if clip is None:
+            raise ValueError("bake needs a clip or times=: when the frames are")
+        times = clip.sample_times()
+    times = np.asarray(times, dtype=np.float64).reshape(-1)
+    if times.size == 0 or not np.all(np.isfinite(times)) or np.any(np.diff(times) <= 0):
+        raise ValueError(f"times must be finite and increasing, one per frame, got {times!r}")
+    if len(frames) != times.size:
+        raise ValueError(f"frames must hold one mesh per time ({times.size}), "
+                         f"got {len(frames)}")
+    return times, frames
+
+
+def _joint_nodes(blob: AccessorWriter, sk) -> tuple[list[dict[str, Any]], dict[str, Any]]:
+    """The scene's nodes (root ``"stbs"``, the mesh, then bone i's joint node at ``a_i``
+    under its parent bone's node) and the skin over the joint nodes."""
+    A, b = sk.A, sk.n_bones
     nodes: list[dict[str, Any]] = [{"name": "stbs", "children": []},
                                    {"name": "mesh", "mesh": 0, "skin": 0}]
     first = len(nodes)
@@ -262,43 +302,27 @@ def write_gltf(path: str | os.PathLike, rig: Rig, clip: Clip | None = None,
             "inverseBindMatrices": blob.add(IBM.transpose(0, 2, 1).reshape(b, 16), FLOAT,
                                             "MAT4"),
             "extras": {TABLE_KEY: bone_table(sk, joints)}}
-    animations = []
-    if clip is not None and bake is None:
-        rigid = bool(np.all(clip.stretch == 1) and not np.any(clip.twist))
-        animations.append(_keyed(blob, clip, first) if rigid else _sampled(blob, clip, first))
-    elif clip is not None:
-        times = clip.sample_times()
-        poses = clip.poses(times)
-        t_acc = blob.add(times - times[0], FLOAT, "SCALAR", minmax=True)
-        if frames is None:
-            dfm = Deformer(V, sk, rig.W, rig.E, method=bake)
-            frames = (dfm(p) for p in poses)
-        elif len(frames) != len(poses):
-            raise ValueError(f"frames must hold one mesh per sampled time ({len(poses)}), "
-                             f"got {len(frames)}")
-        targets = []
-        for U in frames:
-            U = np.asarray(U, dtype=np.float64)
-            if U.shape != V.shape:
-                raise ValueError(f"frames: each must have shape {V.shape}, got {U.shape}")
-            targets.append({"POSITION": blob.add(U - V, FLOAT, "VEC3", target=ARRAY_BUFFER,
-                                                 minmax=True)})
-        prim["targets"] = targets
-        k = len(poses)
-        mesh["weights"] = [0.0] * k
-        mesh["extras"] = {"targetNames": [f"frame_{j}" for j in range(k)]}
-        onehot = np.eye(k, dtype=np.float32).reshape(-1)
-        animations.append({"name": f"baked {bake}",
-                           "samplers": [{"input": t_acc, "interpolation": "LINEAR",
-                                         "output": blob.add(onehot, FLOAT, "SCALAR")}],
-                           "channels": [{"sampler": 0,
-                                         "target": {"node": 1, "path": "weights"}}]})
-    doc: dict[str, Any] = {
-        "asset": {"version": "2.0", "generator": "stbs"},
-        "scene": 0, "scenes": [{"nodes": [0, 1]}],
-        "nodes": nodes, "meshes": [mesh], "skins": [skin],
-        "accessors": blob.accessors, "bufferViews": blob.views,
-    }
-    if animations:
-        doc["animations"] = animations
-    save_gltf_document(path, doc, blob.blob())
+    return nodes, skin
+
+
+def _morph_frames(blob: AccessorWriter, mesh: dict, V: np.ndarray, times: np.ndarray,
+                  frames, *, method: str) -> dict:
+    """Frame k as morph target k (its displacement from ``V``) and the animation that
+    shows it alone at ``times[k]``."""
+    t_acc = blob.add(times - times[0], FLOAT, "SCALAR", minmax=True)
+    targets = []
+    for U in frames:
+        U = np.asarray(U, dtype=np.float64)
+        if U.shape != V.shape:
+            raise ValueError(f"frames: each must have shape {V.shape}, got {U.shape}")
+        targets.append({"POSITION": blob.add(U - V, FLOAT, "VEC3", target=ARRAY_BUFFER,
+                                             minmax=True)})
+    mesh["primitives"][0]["targets"] = targets
+    k = len(targets)
+    mesh["weights"] = [0.0] * k
+    mesh["extras"] = {"targetNames": [f"frame_{j}" for j in range(k)]}
+    onehot = np.eye(k, dtype=np.float32).reshape(-1)
+    return {"name": f"baked {method}",
+            "samplers": [{"input": t_acc, "interpolation": "LINEAR",
+                          "output": blob.add(onehot, FLOAT, "SCALAR")}],
+            "channels": [{"sampler": 0, "target": {"node": 1, "path": "weights"}}]}
