@@ -53,7 +53,8 @@ def requires(args: argparse.Namespace) -> list[str]:
 
 
 def run(args: argparse.Namespace) -> int:
-    from ..io import read_clip, read_rig, write_gltf, write_usd
+    from ..bake import export
+    from ..io import read_clip, read_rig
     from ._character import character_options
     from ._errors import CommandError
 
@@ -67,10 +68,7 @@ def run(args: argparse.Namespace) -> int:
         raise CommandError("--bake needs --clip: the animation to bake")
     rig = read_rig(args.rig, **character_options(args))
     clip = read_clip(args.clip, rig.skeleton) if args.clip else None
-    if usd:
-        write_usd(args.output, rig, clip, bake=args.bake, skinning=args.skinning)
-    else:
-        write_gltf(args.output, rig, clip, bake=args.bake)
+    export(args.output, rig, clip, bake=args.bake, skinning=args.skinning)
     what = f", clip of {len(clip.sample_times())} frames" if clip else ""
     print(f"wrote {args.output}: {len(rig.V)} vertices, {rig.skeleton.n_bones} bones{what}"
           + (f" baked by {args.bake}" if args.bake else ""))
