@@ -25,15 +25,12 @@ import numpy as np
 
 from .. import _checks
 from ..geometry import boundary_faces
+from ..methods import BONE_METHODS, ENDPOINT_METHODS
 from ..skeleton import Skeleton
 from .model import Rig, _weights
 
 __all__ = ["build_rig", "BONE_METHODS", "ENDPOINT_METHODS", "VOLUME_METHODS", "DEFAULT_TOL"]
 
-#: Bone weight methods of :func:`build_rig`.
-BONE_METHODS = ("bbw", "heat")
-#: Endpoint weight methods of :func:`build_rig`.
-ENDPOINT_METHODS = ("bbw", "bbw-joints", "heat", "projection", "idw")
 #: Volume meshes of a 3D surface for BBW (:func:`build_rig`'s ``volume``).
 VOLUME_METHODS = ("auto", "winding", "conforming")
 #: ``volume="auto"`` tries the conforming mesh on closed, clean surfaces of at most this

@@ -57,6 +57,7 @@ import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
 from .. import _checks
+from ..methods import BONE_METHODS
 from ..skeleton import Skeleton
 from . import _cholmod
 from ._cholesky import Factor
@@ -68,8 +69,6 @@ __all__ = ["BBWSolver", "BBWReport", "BBWConvergenceWarning", "bbw", "bone_weigh
            "BONE_METHODS"]
 
 BoneMethod = Literal["bbw", "heat"]
-#: Methods of :func:`bone_weights`.
-BONE_METHODS: tuple[str, ...] = ("bbw", "heat")
 
 _REGION_MAX = 0.2     # a function whose part exceeds this share of the mesh uses the whole
 _MARGIN_RINGS = 3     # rings added around a function's cells
