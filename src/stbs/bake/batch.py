@@ -61,6 +61,7 @@ import numpy as np
 from .. import __version__
 from .._json import load_json, read_json
 from ..io import atomic_open
+from ..methods import SKINNING_METHODS
 from .core import _npz_bytes, frame_limit, frame_times, load_motion, output_kind, write_frames
 
 __all__ = ["Job", "read_manifest", "run_manifest", "BatchReport", "job_hash", "plan",
@@ -68,8 +69,7 @@ __all__ = ["Job", "read_manifest", "run_manifest", "BatchReport", "job_hash", "p
 
 _KEYS = {"rig", "motion", "output", "method", "fps", "frames", "mapping", "twist",
          "stretch", "animation", "max_frames"}
-_METHODS = ("lbs", "dqs", "stbs-lbs", "stbs-dqs")
-_CHOICES = {"method": _METHODS, "twist": ("spread", "joint"), "stretch": ("keep", "match")}
+_CHOICES = {"method": SKINNING_METHODS, "twist": ("spread", "joint"), "stretch": ("keep", "match")}
 _INPUTS = ("rig", "motion", "mapping")
 #: The name of a batch's work file, which runs remove: a part, or a temporary file
 #: (``atomic_open``'s ``.NAME.RANDOM.tmpEXT``) of an output or of a part.

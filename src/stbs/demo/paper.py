@@ -404,9 +404,8 @@ def fig8_box_twist(quick: bool = False, *, degrees: float = 360.0) -> Figure:
     far = np.isclose(V[:, 0], V[:, 0].max())
     xs = np.unique(np.round(V[:, 0], 9))
     curves, panels = {}, []
-    for method in ("heat", "bbw"):
-        E = endpoint_weights(V, sk, method=method, F=F if method == "heat" else None,
-                             T=T if method == "bbw" else None)
+    for method, mesh in (("heat", {"F": F}), ("bbw", {"T": T})):   # each on its own mesh
+        E = endpoint_weights(V, sk, method=method, **mesh)
         U = deform(V, sk, pose, W, E, method="stbs-dqs")
         fig.U[method] = U
         fig.numbers[method] = {"far": degrees * float(E[far, 0].mean())}
