@@ -6,12 +6,12 @@ from __future__ import annotations
 import argparse
 import sys
 
+from ..methods import SKINNING_METHODS as METHODS
 from ._character import add_character_options
 
 NAME = "animate"
 HELP = "bake a motion (BVH, glTF, FBX, clip JSON) on a rig into frames (.npz, .glb, meshes)"
 EXAMPLE = "stbs animate arm.npz --motion wave.json -o arm-wave.glb"
-METHODS = ("lbs", "dqs", "stbs-lbs", "stbs-dqs")
 DESCRIPTION = """\
 Bake an animation: the rig (.npz, or a character: glTF .gltf .glb, FBX .fbx) deformed by every
 frame of a motion, with the rig's Deformer built once so that each frame costs the

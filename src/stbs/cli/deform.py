@@ -9,13 +9,13 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from ..methods import SKINNING_METHODS as METHODS
 from ._character import add_character_options, character_options
 from ._errors import CommandError
 
 NAME = "deform"
 HELP = "deform a rigged mesh by a pose (JSON) and write the result"
 EXAMPLE = "stbs deform arm.npz --pose twist.json --method stbs-dqs -o arm-twisted.obj"
-METHODS = ("lbs", "dqs", "stbs-lbs", "stbs-dqs")  # = stbs.METHODS (kept light to import)
 OUTPUT_EXTENSIONS = (".obj", ".off", ".ply", ".npz", ".npy", ".png")
 #: Pixels of the longer side of a .png picture (--size).
 PNG_SIZE = 720

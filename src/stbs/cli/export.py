@@ -4,12 +4,12 @@ from __future__ import annotations
 
 import argparse
 
+from ..methods import SKINNING_METHODS as METHODS
 from ._character import add_character_options
 
 NAME = "export"
 HELP = "write a rig (and a clip) as glTF 2.0 (.glb, .gltf) or OpenUSD (.usda, .usdc)"
 EXAMPLE = "stbs export arm.npz -o arm.glb"
-METHODS = ("lbs", "dqs", "stbs-lbs", "stbs-dqs")
 DESCRIPTION = """\
 Write a rig as glTF 2.0: a standard skin that every glTF viewer plays (linear blend
 skinning, the four heaviest bones per vertex), with the endpoint weights as the
