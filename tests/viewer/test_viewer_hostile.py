@@ -26,7 +26,7 @@ from viewer_client import TIMEOUT, bar_rig, post_json, raw, request
 import stbs
 from stbs._inputs import inputs, note_input, tracking
 from stbs.viewer import ViewerServer, clips
-from stbs.viewer import server as server_module
+from stbs.viewer import handler as handler_module
 
 KEYS = [
     {"time": 0.0, "pose": {}},
@@ -262,16 +262,16 @@ def test_200_concurrent_requests_all_succeed(srv):
 
 
 def test_handler_threads_are_bounded(monkeypatch):
-    monkeypatch.setattr(server_module._Handler, "timeout", 2)
+    monkeypatch.setattr(handler_module.Handler, "timeout", 2)
 
     def handlers() -> int:
         return sum("process_request" in t.name for t in threading.enumerate())
 
     with ViewerServer(bar_rig()) as s:
-        idle = _connect_all(s.port, server_module.MAX_HANDLERS + 60, wait=3.0)
+        idle = _connect_all(s.port, handler_module.MAX_HANDLERS + 60, wait=3.0)
         try:
             time.sleep(0.5)
-            assert handlers() <= server_module.MAX_HANDLERS
+            assert handlers() <= handler_module.MAX_HANDLERS
         finally:
             for c in idle:
                 c.close()
@@ -331,7 +331,7 @@ def test_an_unread_body_is_never_read_as_the_next_request(srv):
 
 
 def test_a_body_cut_short_is_a_400_without_a_traceback(srv, capfd, monkeypatch):
-    monkeypatch.setattr(server_module._Handler, "timeout", 0.5)
+    monkeypatch.setattr(handler_module.Handler, "timeout", 0.5)
     with socket.create_connection(("127.0.0.1", srv.port), timeout=TIMEOUT) as c:
         c.sendall(head(srv, ["Content-Length: 50"], b'{"st'))        # then silence
         reply = b""
@@ -385,7 +385,7 @@ def _routes(s) -> dict:
                       "stretch": {"lower": 1.5}, "twist": {"upper": [0, 45]}},
         "/api/save-pose": {"pose": {"stretch": {"upper": 2}}, "name": "p.json",
                            "overwrite": True},
-        "/api/save-rig": {"W": W.tolist(), "E": np.asarray(rig.E).tolist()},
+        "/api/save-rig": {"W": W.tolist(), "E": np.asarray(rig.E).tolist(), "overwrite": True},
         "/api/endpoint-weights": {"bone": 0, "method": "idw", "W": W.tolist(), "alpha": 2,
                                   "normalize": "bone", "threshold": 0.1},
         "/api/clip": CLIP,

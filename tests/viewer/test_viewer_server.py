@@ -492,9 +492,23 @@ def test_save_rig_with_new_weights_as_json_and_binary(srv, rig, tmp_path):
     got = request(srv, "GET", "/api/rig/W.bin", token=True).array()
     np.testing.assert_array_equal(got, W.astype(np.float32))
     W2 = np.asarray(rig.W).astype(np.float32)
+    raw_W = {"Content-Type": "application/octet-stream", "X-Stbs-Arrays": "W",
+             "X-Stbs-Dtype": "float32"}
+    before = (tmp_path / "saved.npz").read_bytes()
+    # the file exists now: replaced only when the request says so
     r = request(srv, "POST", "/api/save-rig", body=W2.astype("<f4").tobytes(), token=True,
-                headers={"Content-Type": "application/octet-stream", "X-Stbs-Arrays": "W",
-                         "X-Stbs-Dtype": "float32"})
+                headers=raw_W)
+    assert r.status == 409 and "X-Stbs-Overwrite: true" in r.json()["error"]
+    r = post_json(srv, "/api/save-rig", {"W": W2.tolist()})
+    assert r.status == 409 and '"overwrite": true' in r.json()["error"]
+    assert (tmp_path / "saved.npz").read_bytes() == before
+    np.testing.assert_array_equal(request(srv, "GET", "/api/rig/W.bin", token=True).array(),
+                                  W.astype(np.float32))     # a refused save changes nothing
+    r = request(srv, "POST", "/api/save-rig", body=W2.astype("<f4").tobytes(), token=True,
+                headers={**raw_W, "X-Stbs-Overwrite": "yes"})
+    assert r.status == 400 and "X-Stbs-Overwrite" in r.json()["error"]
+    r = request(srv, "POST", "/api/save-rig", body=W2.astype("<f4").tobytes(), token=True,
+                headers={**raw_W, "X-Stbs-Overwrite": "true"})
     assert r.status == 200, r.body
     saved = load_rig(tmp_path / "saved.npz")
     np.testing.assert_array_equal(saved.W, W2.astype(np.float64))
@@ -502,9 +516,11 @@ def test_save_rig_with_new_weights_as_json_and_binary(srv, rig, tmp_path):
     both = np.stack([np.asarray(rig.W), np.asarray(rig.E)]).astype("<f8").tobytes()
     r = request(srv, "POST", "/api/save-rig", body=both, token=True,
                 headers={"Content-Type": "application/octet-stream", "X-Stbs-Arrays": "W,E",
-                         "X-Stbs-Dtype": "float64"})
+                         "X-Stbs-Dtype": "float64", "X-Stbs-Overwrite": "true"})
     assert r.status == 200
     same_rig(load_rig(tmp_path / "saved.npz"), rig)
+    assert post_json(srv, "/api/save-rig", {"overwrite": True}).status == 200
+    assert post_json(srv, "/api/save-rig", {"overwrite": 1}).status == 400
 
 
 def test_save_rig_refuses_bad_weights(srv, rig, tmp_path):

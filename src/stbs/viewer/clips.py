@@ -4,10 +4,10 @@ The server holds the clips the page plays (:class:`ClipStore`: the clip it was s
 with, and each clip the page built, registered once per edit with ``POST /api/clip``)
 and answers their poses at any times from :meth:`stbs.Clip.arrays`, so the page plays
 and seeks exactly :meth:`stbs.Clip.pose` (step and cubic channels of a character's
-animation included) without sending the clip again. :class:`ViewerServer` answers
-``/api/clip...``, ``POST /api/save-clip`` and ``POST /api/export`` with these
-functions; they check the request, raise :class:`Refusal` (an HTTP status and one
-line) for a bad one, and leave the locking and the token and Host rules to the server.
+animation included) without sending the clip again. The clip routes
+(:mod:`stbs.viewer.routes`) answer with these functions; they check the request, raise
+:class:`stbs.viewer.refusal.Refusal` (an HTTP status and one line) for a bad one, and
+leave the locking and the token and Host rules to the server.
 Clip objects a request sends are read by :func:`stbs.io.read_clip`.
 
 Each request's work is bounded before it is done, and a request over a bound is 413
@@ -43,6 +43,9 @@ from ..clip import Clip
 from ..io import atomic_open, clip_to_dict, read_clip
 from ..pose import Pose
 from ..skeleton import Skeleton
+from . import bones
+from .refusal import Refusal
+from .refusal import one_line as _one_line
 
 __all__ = ["Refusal", "ClipStore", "MAX_FRAMES", "MAX_CLIPS", "MAX_KEYS", "MAX_KEY_BONES",
            "MAX_SAMPLES", "MAX_FRAME_SAMPLES", "MAX_EXPORT_FRAMES", "MAX_EXPORT_PIXELS",
@@ -85,19 +88,6 @@ CLIP_NAME = re.compile(r"[A-Za-z0-9_][A-Za-z0-9_.-]{0,99}\.json\Z")
 GIF_NAME = re.compile(r"[A-Za-z0-9_][A-Za-z0-9_.-]{0,99}\.gif\Z")
 
 _PNG = b"\x89PNG\r\n\x1a\n"
-
-
-class Refusal(Exception):
-    """A request the clip routes refuse: the HTTP status and a one-line message."""
-
-    def __init__(self, status: int, message: str):
-        super().__init__(message)
-        self.status = int(status)
-        self.message = " ".join(str(message).split())
-
-
-def _one_line(exc: BaseException) -> str:
-    return " ".join(str(exc).split()) or type(exc).__name__
 
 
 def _show(x: Any) -> str:
@@ -292,14 +282,12 @@ def frames(clip: Clip, query: str) -> np.ndarray:
     """``GET /api/clip/ID/frames?t=T0,T1,...``: the clip's poses at those times, as rows.
 
     Evaluated in one batch by :meth:`stbs.Clip.arrays`. Returns a (k, b, m) float64
-    array, m = d*d + d + 3: per frame and bone, ``R_i`` row-major (d*d), ``a'_i`` (d),
-    ``sigma_i``, ``theta_a,i``, ``theta_b,i`` (radians).
+    array, m = d*d + d + 3: per frame, the rows of :mod:`stbs.viewer.bones` (``R_i``
+    row-major, ``a'_i``, ``sigma_i``, ``theta_a,i``, ``theta_b,i`` in radians).
     """
     t = _times(query)
     _samples("t", len(t), clip.skeleton.n_bones, MAX_FRAME_SAMPLES)
-    R, O, sigma, theta = clip.arrays(t)
-    k, b, d = R.shape[0], R.shape[1], R.shape[2]
-    return np.concatenate([R.reshape(k, b, d * d), O, sigma[..., None], theta], axis=-1)
+    return bones.rows(*clip.arrays(t))
 
 
 def clip_pose_at(clip: Clip, obj: Any) -> tuple[Pose, float]:
