@@ -305,3 +305,36 @@ def test_the_clip_routes_need_the_token_and_post(srv):
         r = request(srv, other, path, token=True, body=body if other == "POST" else None)
         assert r.status == 405 and r.headers["allow"] == allow
     assert request(srv, "GET", f"/api/clip/{cid}x", token=True).status == 404
+
+
+def test_seek_makes_the_clips_pose_current_and_answers_its_binary_bones(srv):
+    sk = srv.rig.skeleton
+    cid = post_json(srv, "/api/clip", CLIP).json()["id"]
+    clip = stbs.io.read_clip(CLIP, sk)
+    for t in (0.0, 0.5, 1.25, 7.0):
+        r = post_json(srv, f"/api/clip/{cid}/seek", {"time": t})
+        assert r.status == 200, r.body
+        assert r.headers["content-type"] == "application/octet-stream"
+        assert float(r.headers["x-stbs-time"]) == t
+        rows = r.array()
+        assert rows.shape == (sk.n_bones, 15)
+        ref = clip.pose(t)
+        R, O = rows[:, :9].reshape(-1, 3, 3), rows[:, 9:12]
+        sigma, theta = rows[:, 12], rows[:, 13:15]
+        for a, b in ((R, ref.rotations), (O, ref.origins), (sigma, ref.stretch),
+                     (theta, ref.twist)):
+            assert np.abs(a - b).max() < 1e-12
+        assert np.abs(srv.pose.origins - ref.origins).max() < 1e-12
+        # the pose file object of the current pose follows, made when asked for
+        back = stbs.io.read_pose(request(srv, "GET", "/api/pose", token=True).json(), sk)
+        assert np.abs(back.origins - ref.origins).max() < 1e-9
+    before = srv.pose
+    for body, status, words in (({"time": "x"}, 400, "finite number of seconds"),
+                                ({}, 400, 'missing "time"'),
+                                ({"time": 0, "at": 1}, 400, "unexpected key 'at'")):
+        r = post_json(srv, f"/api/clip/{cid}/seek", body)
+        assert r.status == status and words in r.json()["error"], r.body
+    assert post_json(srv, "/api/clip/0123456789abcdef/seek", {"time": 0}).status == 404
+    r = request(srv, "GET", f"/api/clip/{cid}/seek", token=True)
+    assert r.status == 405 and r.headers["allow"] == "POST"
+    assert srv.pose is before
