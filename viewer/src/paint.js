@@ -1,30 +1,34 @@
-// Weights on the page: colour modes (shaded, bones, endpoint), painting the selected
-// bone's bone weights W or endpoint weights E with a brush, recomputing one bone's
-// endpoint weights on the server, and the endpoint filter curve (spline.js).
+// Weight paint on the page: the panel, the pointer and the GPU. The work itself is in
+// pure modules: brush.js (which vertices a dab covers, the new values), weightrows.js
+// (a bone weight set with the row summing to 1 and locked bones kept, the four-heaviest
+// layout, the log of changed rows), mirror.js (the X-mirror's bones and vertices).
 //
-// The page keeps the full W and E (n x b, row-major Float32Arrays). After each change
-// the top-4 layout (I4, W4, E4: the four heaviest bones, heaviest first, ties by bone
-// index, weights renormalised; as stbs.skinning.top_k) of the changed vertices is
-// rebuilt and uploaded to the mesh and to the transform-feedback buffers, so the
-// drawing and skinnedPositions() follow every dab. Every change (a stroke, a
-// recompute, a baked curve) is one undo step that restores W and E bit for bit.
+// The store holds the full W and E (n x b Float32Arrays, row-major), edited in place.
+// A dab rebuilds the four-heaviest layout (I4, W4, E4) of the rows it changed and
+// uploads only those ranges, with bufferSubData, into the buffers that both the mesh
+// and the read-back program draw from (so the drawing and skinnedPositions() follow
+// every dab). The brush is placed by a ray cast against the skinned positions, read
+// back once per pose (and method, and after each change of the weights), not per dab.
+// Every stroke, recompute and baked curve is one command on the page's History.
 
 import * as THREE from "three";
 import { SplineEditor, splineFilter } from "./spline.js";
+import { Brush, FALLOFFS, PAINT_OPS, adjacency } from "./brush.js";
+import { RowLog, layoutRows, restoreRows, rowRanges, setBoneWeight } from "./weightrows.js";
+import { centreX, mirrorBones, mirrorVertices } from "./mirror.js";
+import { api as defaultApi } from "./api.js";
 
-export const COLOR_MODES = ["shaded", "bones", "endpoint"];
+export { FALLOFFS, PAINT_OPS };
+/** Colour modes, in the order of the shader's uColorMode (skin.js). */
+export const COLOR_MODES = ["shaded", "bones", "endpoint", "weight"];
 export const PAINT_MODES = ["off", "bone", "endpoint"];
-export const PAINT_OPS = ["add", "subtract", "smooth"];
-export const FALLOFFS = ["smooth", "linear", "constant"];
 export const ENDPOINT_METHODS = ["projection", "idw", "heat", "bbw", "bbw-joints"];
+/** `[` and `]` scale the brush's radius by this. */
+export const RADIUS_STEP = 1.25;
 
-const FALL = {
-  smooth: (x) => { const t = 1 - x * x; return t * t; },
-  linear: (x) => 1 - x,
-  constant: () => 1,
-};
-
-const UNDO_LIMIT = 100;
+function bad(what, expected, got) {
+  return new Error(`${what}: expected ${expected}, got ${JSON.stringify(got)}`);
+}
 
 function sameArray(a, b) {
   if (a.length !== b.length) return false;
@@ -32,63 +36,152 @@ function sameArray(a, b) {
   return true;
 }
 
-function bad(what, expected, got) {
-  return new Error(`${what}: expected ${expected}, got ${JSON.stringify(got)}`);
-}
-
 export class WeightEditor {
   /**
-   * @param viewer  the page's Viewer, loaded, with arrays W and E (n x b float32)
-   * @param api     fetch(path, options) with the token, throwing on an error answer
+   * @param ctx  the page's context {store, events, history, keys, view} (or an object
+   *             holding it as .ctx), with store.rig, store.W and store.E loaded
+   * @param api  fetch(path, options) with the token, throwing on an error answer
    */
-  constructor(viewer, api) {
-    const v = viewer;
-    this.v = v;
+  constructor(ctx, api = defaultApi) {
+    ctx = ctx.ctx || ctx;
+    const { store, events, history, keys, view } = ctx;
+    this.store = store; this.events = events; this.history = history; this.keys = keys; this.view = view;
     this.api = api;
-    this.n = v.n;
-    this.b = v.b;
+    const rig = store.rig;
+    this.n = rig.n;
+    this.b = rig.b;
+    this.dim = rig.dim;
     const nb = this.n * this.b;
-    if (!v.arrays.W || v.arrays.W.length !== nb || !v.arrays.E || v.arrays.E.length !== nb) {
+    if (!(store.W instanceof Float32Array) || store.W.length !== nb || !(store.E instanceof Float32Array) || store.E.length !== nb) {
       throw new Error(`weights: expected W and E of ${this.n} x ${this.b} values from the server`);
     }
-    this.W = Float32Array.from(v.arrays.W);
-    this.E = Float32Array.from(v.arrays.E);
-    this.parents = (v.summary.parents || []).map(Number);
-    this.names = [];
-    const names = v.summary.names || [];
-    for (let i = 0; i < this.b; i++) this.names.push(names[i] != null ? String(names[i]) : String(i));
-    this.rest = v.mesh.geometry.attributes.position.array;      // n x 3 (z = 0 in 2D)
-    this.faces = v.arrays.F ? Uint32Array.from(v.arrays.F) : new Uint32Array(0);
-    this.neighbours = this.adjacency();
-    this.settings = { mode: "off", bone: 0, op: "add", radius: 0.08 * v.diag, strength: 0.25,
-                      falloff: "smooth" };
+    this.W = store.W;
+    this.E = store.E;
+    this.parents = Int32Array.from(rig.parents || new Array(this.b).fill(-1));
+    this.names = rig.names.slice();
+    this.rig = rig;
+    this.summary = rig.summary || {};
+    const geom = view.mesh.geometry;
+    this.rest = geom.attributes.position.array;                 // n x 3 (z = 0 in 2D)
+    this.faces = rig.F ? Uint32Array.from(rig.F) : new Uint32Array(0);
+    this.nbrs = adjacency(this.faces, this.n);
+    this.brush = new Brush(this.rest, 3, this.nbrs);
+    this.log = new RowLog(this.n, this.b);
+    this.locked = new Uint8Array(this.b);
+    this.filters = new Array(this.b).fill(null);     // bone -> spline filter previewed (not yet in E)
+    this.scratch = new Float64Array(2 * this.b);
+    this.changed = new Int32Array(1024);
+    this.stamp = new Int32Array(this.n);             // per vertex: the dab that last took it
+    this.dabCount = 0;
+    this.mirrorMaps = null;
+    const diag = view.diag;
+    this.settings = { mode: "off", bone: store.selection.bone ?? 0, op: "add", radius: 0.08 * diag,
+                      strength: 0.25, falloff: "smooth" };
     this.colorModeName = "shaded";
-    this.filters = new Map();     // bone -> spline filter previewed (not yet in E)
-    this.undoStack = [];
-    this.redoStack = [];
     this.stroke = null;
     this.lastStroke = null;
-    const geom = v.mesh.geometry;
-    // the server's layout (from its float64 W) stands for every row still as loaded
-    this.W0 = this.W.slice();
-    this.serverW = this.W0;
-    this.I4_0 = geom.attributes.stbsIndex.array.slice();
-    this.W4_0 = geom.attributes.stbsWeight.array.slice();
-    this.sel = new Float32Array(2 * this.n);       // per vertex: W and f(E) of the selected bone
-    geom.setAttribute("stbsSel", new THREE.BufferAttribute(this.sel, 2));
-    this.updateSelection();
-    const canvas = v.renderer.domElement;
+    this.serverW = this.W.slice();       // the weights the server has (sent with a recompute when not)
+    this.setupBuffers(geom);
+    this.posedCache = null;
+    this.weightsVersion = 0;
+    events.on("pose", () => { this.posedCache = null; });
+    events.on("select", ({ bone }) => { if (bone !== null && bone !== this.settings.bone) this.selectBone(bone, false); });
+    events.on("mirror", () => this.showSettings());
+    const canvas = view.renderer.domElement;
+    this.canvas = canvas;
     // capture phase on window: runs before the canvas' own listeners (joint drags, orbit)
     window.addEventListener("pointerdown", (e) => this.onDown(e), { capture: true });
     window.addEventListener("pointermove", (e) => this.onMove(e), { capture: true });
     window.addEventListener("pointerup", (e) => this.onUp(e), { capture: true });
     window.addEventListener("pointercancel", (e) => this.onUp(e), { capture: true });
-    window.addEventListener("keydown", (e) => this.onKey(e), { capture: true });
-    this.canvas = canvas;
     canvas.addEventListener("pointerleave", () => this.hideRing());
     this.ring = this.makeRing();
-    v.scene.add(this.ring);
+    view.scene.add(this.ring);
+    keys.register({ key: "[", label: "brush smaller", run: () => this.resizeBrush(1 / RADIUS_STEP) });
+    keys.register({ key: "]", label: "brush larger", run: () => this.resizeBrush(RADIUS_STEP) });
     this.buildPanel();
+  }
+
+  // ------------------------------------------------------------------ GPU buffers
+  /**
+   * The layout attributes (stbsIndex, stbsWeight, stbsEnd) drawn from the read-back
+   * program's buffers, and stbsSel (the selected bone's W and f(E)) from a buffer of
+   * our own: one upload per dab serves the drawing and skinnedPositions().
+   */
+  setupBuffers(geom) {
+    const gl = this.view.renderer.getContext(), fb = this.view.feedback;
+    this.gl = gl;
+    this.I4 = geom.attributes.stbsIndex.array;
+    this.W4 = geom.attributes.stbsWeight.array;
+    this.E4 = geom.attributes.stbsEnd.array;
+    // the server's layout (from its float64 W) stands for every row still as loaded
+    this.loaded = { W: this.W.slice(), I4: this.I4.slice(), W4: this.W4.slice() };
+    this.sel = new Float32Array(2 * this.n);
+    this.selBuffer = gl.createBuffer();
+    gl.bindBuffer(gl.ARRAY_BUFFER, this.selBuffer);
+    gl.bufferData(gl.ARRAY_BUFFER, this.sel, gl.DYNAMIC_DRAW);
+    gl.bindBuffer(gl.ARRAY_BUFFER, null);
+    this.uploads = [["stbsIndex", this.I4, 4], ["stbsWeight", this.W4, 4], ["stbsEnd", this.E4, 4]]
+      .map(([name, data, size]) => ({ buffer: fb.bufferOf[name], data, size }));
+    this.uploads.push({ buffer: this.selBuffer, data: this.sel, size: 2 });
+    for (const [name, size] of [["stbsIndex", 4], ["stbsWeight", 4], ["stbsEnd", 4]]) {
+      geom.setAttribute(name, new THREE.GLBufferAttribute(fb.bufferOf[name], gl.FLOAT, size, 4, this.n));
+    }
+    geom.setAttribute("stbsSel", new THREE.GLBufferAttribute(this.selBuffer, gl.FLOAT, 2, 4, this.n));
+    this.updateSelection(null);
+  }
+
+  /** Upload the rows (sorted, `count` of them; null: all) of every layout buffer. */
+  upload(rows, count) {
+    const gl = this.gl;
+    const ranges = rows === null ? [[0, this.n]] : rowRanges(rows, count);
+    for (const { buffer, data, size } of this.uploads) {
+      gl.bindBuffer(gl.ARRAY_BUFFER, buffer);
+      for (const [a, e] of ranges) gl.bufferSubData(gl.ARRAY_BUFFER, 4 * size * a, data, size * a, size * (e - a));
+    }
+    gl.bindBuffer(gl.ARRAY_BUFFER, null);
+  }
+
+  /** Rebuild the layout and the selection of rows (sorted; null: all) and upload them. */
+  refreshRows(rows, count = rows ? rows.length : this.n) {
+    const all = rows === null;
+    const list = all ? null : rows;
+    if (all) {
+      const every = new Int32Array(this.n);
+      for (let v = 0; v < this.n; v++) every[v] = v;
+      layoutRows(this.W, this.E, this.b, every, this.n, this.I4, this.W4, this.E4, this.loaded, this.filters);
+    } else {
+      layoutRows(this.W, this.E, this.b, list, count, this.I4, this.W4, this.E4, this.loaded, this.filters);
+    }
+    this.fillSelection(list, count);
+    this.upload(list, count);
+    this.store.weightsChanged(all ? null : list.slice(0, count));
+  }
+
+  /** The selected bone's W and f(E) per vertex (rows, or all when null), into sel. */
+  fillSelection(rows, count) {
+    const i = this.settings.bone, b = this.b, f = this.filters[i], all = rows === null;
+    const m = all ? this.n : count;
+    for (let q = 0; q < m; q++) {
+      const r = all ? q : rows[q], e = this.E[r * b + i];
+      this.sel[2 * r] = this.W[r * b + i];
+      this.sel[2 * r + 1] = f ? f(e) : e;
+    }
+  }
+
+  updateSelection(rows) {
+    this.fillSelection(rows, rows ? rows.length : this.n);
+    const gl = this.gl;
+    gl.bindBuffer(gl.ARRAY_BUFFER, this.selBuffer);
+    gl.bufferSubData(gl.ARRAY_BUFFER, 0, this.sel);
+    gl.bindBuffer(gl.ARRAY_BUFFER, null);
+    this.requestRender();
+  }
+
+  /** Draw on the next animation frame (many dabs, one drawing). */
+  requestRender() {
+    if (this.renderFrame) return;
+    this.renderFrame = requestAnimationFrame(() => { this.renderFrame = 0; this.view.render(); });
   }
 
   // ------------------------------------------------------------------ the brush ring
@@ -115,13 +208,13 @@ export class WeightEditor {
     r.quaternion.setFromUnitVectors(new THREE.Vector3(0, 0, 1), n.normalize());
     r.scale.setScalar(this.settings.radius);
     r.visible = true;
-    this.v.render();
+    this.requestRender();
   }
 
   hideRing() {
     if (!this.ring.visible || this.stroke) return;
     this.ring.visible = false;
-    this.v.render();
+    this.requestRender();
   }
 
   /** Pointer over the canvas in paint mode: the ring follows (once a frame). */
@@ -137,16 +230,12 @@ export class WeightEditor {
     });
   }
 
-  // ------------------------------------------------------------------ mesh helpers
-  adjacency() {
-    const n = this.n, F = this.faces, sets = Array.from({ length: n }, () => new Set());
-    for (let f = 0; f < F.length; f += 3) {
-      const a = F[f], b = F[f + 1], c = F[f + 2];
-      sets[a].add(b); sets[a].add(c); sets[b].add(a); sets[b].add(c); sets[c].add(a); sets[c].add(b);
-    }
-    return sets.map((s) => Int32Array.from(s));
+  resizeBrush(k) {
+    const lo = this.view.diag / 200, hi = this.view.diag / 2;
+    this.setPaint({ radius: Math.min(hi, Math.max(lo, this.settings.radius * k)) });
   }
 
+  // ------------------------------------------------------------------ helpers
   boneIndex(key) {
     if (typeof key === "number" && Number.isInteger(key) && key >= 0 && key < this.b) return key;
     if (typeof key === "string") {
@@ -157,75 +246,14 @@ export class WeightEditor {
     throw bad("bone", `an index 0..${this.b - 1} or a bone name`, key);
   }
 
-  // ------------------------------------------------------------------ GPU layout
-  /** f(E) of vertex r for bone j: the previewed filter of j applied. */
-  endOf(r, j) {
-    const e = this.E[r * this.b + j], f = this.filters.get(j);
-    return f ? f(e) : e;
-  }
-
-  /**
-   * Rebuild the top-4 layout of rows (all when null) and upload it. A row whose W is
-   * as loaded keeps the server's layout (made from the rig's float64 W: near-ties
-   * among the heaviest bones fall as the library's); E4 is always f(E) of its slots.
-   */
-  updateRows(rows) {
-    const geom = this.v.mesh.geometry, b = this.b, W = this.W;
-    const I4 = geom.attributes.stbsIndex.array, W4 = geom.attributes.stbsWeight.array;
-    const E4 = geom.attributes.stbsEnd.array;
-    const all = rows == null, count = all ? this.n : rows.length;
-    const top = [0, 0, 0, 0], tw = [0, 0, 0, 0];
-    for (let q = 0; q < count; q++) {
-      const r = all ? q : rows[q];
-      let asLoaded = true;
-      for (let j = 0; j < b && asLoaded; j++) asLoaded = W[r * b + j] === this.W0[r * b + j];
-      if (asLoaded) {
-        for (let c = 0; c < 4; c++) {
-          const o = 4 * r + c;
-          I4[o] = this.I4_0[o]; W4[o] = this.W4_0[o];
-          E4[o] = W4[o] > 0 ? Math.min(1, Math.max(0, this.endOf(r, I4[o]))) : 0;
-        }
-        continue;
-      }
-      let k = 0;
-      for (let j = 0; j < b; j++) {        // insertion into the 4 heaviest, earlier bone first on ties
-        const w = W[r * b + j];
-        if (!(w > 0)) continue;
-        if (k === 4 && w <= tw[3]) continue;
-        let p = k < 4 ? k++ : 3;
-        while (p > 0 && tw[p - 1] < w) { tw[p] = tw[p - 1]; top[p] = top[p - 1]; p--; }
-        tw[p] = w; top[p] = j;
-      }
-      let s = 0;
-      for (let c = 0; c < k; c++) s += tw[c];
-      for (let c = 0; c < 4; c++) {
-        const o = 4 * r + c;
-        if (c < k) {
-          I4[o] = top[c]; W4[o] = tw[c] / s; E4[o] = Math.min(1, Math.max(0, this.endOf(r, top[c])));
-        } else {
-          I4[o] = 0; W4[o] = 0; E4[o] = 0;
-        }
-      }
+  /** The X-mirror's maps (made when first needed): bone -> bone, vertex -> vertex. */
+  mirror() {
+    if (!this.mirrorMaps) {
+      const rig = this.rig, centre = centreX(rig.V, rig.dim);
+      this.mirrorMaps = { bones: mirrorBones(rig, { centre }),
+                          vertices: mirrorVertices(this.rest, 3, { centre, grid: this.brush.grid }) };
     }
-    for (const name of ["stbsIndex", "stbsWeight", "stbsEnd"]) {
-      geom.attributes[name].needsUpdate = true;
-      this.v.feedback.setAttribute(name, geom.attributes[name].array);
-    }
-    this.v.renderer.resetState();
-    this.updateSelection(rows);
-  }
-
-  /** The selected bone's W and f(E) per vertex, for the endpoint colour mode. */
-  updateSelection(rows) {
-    const i = this.settings.bone, b = this.b, all = rows == null;
-    const count = all ? this.n : rows.length;
-    for (let q = 0; q < count; q++) {
-      const r = all ? q : rows[q];
-      this.sel[2 * r] = this.W[r * b + i];
-      this.sel[2 * r + 1] = this.endOf(r, i);
-    }
-    this.v.mesh.geometry.attributes.stbsSel.needsUpdate = true;
-    this.v.render();
+    return this.mirrorMaps;
   }
 
   // ------------------------------------------------------------------ colour modes
@@ -233,10 +261,10 @@ export class WeightEditor {
     const k = COLOR_MODES.indexOf(name);
     if (k < 0) throw bad("colour mode", `one of ${COLOR_MODES.join(", ")}`, name);
     this.colorModeName = name;
-    this.v.material.uniforms.uColorMode.value = k;
+    this.view.material.uniforms.uColorMode.value = k;
     const sel = document.getElementById("color-mode");
     if (sel) sel.value = name;
-    this.v.render();
+    this.view.render();
     return name;
   }
 
@@ -245,9 +273,9 @@ export class WeightEditor {
   // ------------------------------------------------------------------ settings
   setPaint(opts = {}) {
     if (opts === null || typeof opts !== "object" || Array.isArray(opts)) {
-      throw bad("setPaint", "an object {mode, bone, op, radius, strength, falloff}", opts);
+      throw bad("setPaint", "an object {mode, bone, op, radius, strength, falloff, mirror}", opts);
     }
-    const keys = ["mode", "bone", "op", "radius", "strength", "falloff"];
+    const keys = ["mode", "bone", "op", "radius", "strength", "falloff", "mirror"];
     for (const k of Object.keys(opts)) {
       if (!keys.includes(k)) throw bad("setPaint", `keys among ${keys.join(", ")}`, k);
     }
@@ -277,42 +305,75 @@ export class WeightEditor {
       if (!FALLOFFS.includes(opts.falloff)) throw bad("brush falloff", `one of ${FALLOFFS.join(", ")}`, opts.falloff);
       s.falloff = opts.falloff;
     }
+    if ("mirror" in opts && typeof opts.mirror !== "boolean") throw bad("mirror", "true or false", opts.mirror);
     const boneChanged = s.bone !== this.settings.bone;
     this.settings = s;
+    if ("mirror" in opts) this.store.setMirror(opts.mirror);
+    this.store.setBrush({ radius: s.radius, strength: s.strength, op: s.op, falloff: s.falloff, target: s.mode });
+    this.store.setMode(s.mode === "off" ? "pose" : "paint");
     if (s.mode === "off") this.hideRing();
-    else if (this.ring.visible) { this.ring.scale.setScalar(s.radius); this.v.render(); }
+    else if (this.ring.visible) { this.ring.scale.setScalar(s.radius); this.requestRender(); }
     if (boneChanged) this.selectBone(s.bone, true);
     this.showSettings();
     return this.paintSettings();
   }
 
   paintSettings() {
-    return Object.assign({}, this.settings, { boneName: this.names[this.settings.bone] });
+    return Object.assign({}, this.settings, { boneName: this.names[this.settings.bone],
+                                              mirror: this.store.mirror, locked: this.lockedBones() });
   }
 
-  /** The selected bone (shared with the pose panel's bone list). */
+  /** The selected bone: the one painted and shown by the heat maps. */
   selectBone(i, fromApi) {
     this.settings.bone = i;
+    if (this.store.selection.bone !== i) this.store.select(i);
     const sel = document.getElementById("bone");
     if (fromApi && sel && sel.value !== String(i)) {
       sel.value = String(i);
       sel.dispatchEvent(new Event("change"));
     }
-    this.updateSelection();
+    this.updateSelection(null);
     if (this.curve) this.curve.set(this.splinePointsOf(i).slice(1, -1));
+    this.showSettings();
+  }
+
+  // ------------------------------------------------------------------ locks
+  /** Lock (true) or unlock bone weights: painting never changes a locked bone's weight. */
+  setLock(bone, on) {
+    const i = this.boneIndex(bone);
+    if (typeof on !== "boolean") throw bad("lock", "true or false", on);
+    this.locked[i] = on ? 1 : 0;
+    this.showSettings();
+    return this.lockedBones();
+  }
+
+  lockedBones() {
+    const out = [];
+    for (let i = 0; i < this.b; i++) if (this.locked[i]) out.push(i);
+    return out;
   }
 
   // ------------------------------------------------------------------ picking
-  /** Where the pointer's ray meets the posed surface: {face, u, v, t, rest, posed} or null. */
+  /** The skinned positions (n x 3) for the pose shown, read back once per pose. */
+  posed() {
+    const method = this.view.material.uniforms.uMethod.value;
+    const c = this.posedCache;
+    if (c && (this.stroke || (c.method === method && c.version === this.weightsVersion))) return c.U;
+    const U = this.view.skinned()[0];
+    this.posedCache = { U, method, version: this.weightsVersion };
+    return U;
+  }
+
+  /** Where the pointer's ray meets the posed surface: {face, u, v, t, rest, posed, normal} or null. */
   pick(clientX, clientY) {
-    const rect = this.v.viewRect ? this.v.viewRect() : this.canvas.getBoundingClientRect();
+    const rect = this.view.viewRectAt ? this.view.viewRectAt(clientX, clientY) : this.view.viewRect();
     const ndc = new THREE.Vector2(2 * (clientX - rect.left) / rect.width - 1,
                                   1 - 2 * (clientY - rect.top) / rect.height);
-    if (Math.abs(ndc.x) > 1 || Math.abs(ndc.y) > 1) return null;     // outside the (left) view
+    if (Math.abs(ndc.x) > 1 || Math.abs(ndc.y) > 1) return null;     // outside the view
     const ray = new THREE.Raycaster();
-    ray.setFromCamera(ndc, this.v.camera);
+    ray.setFromCamera(ndc, this.view.camera);
     const o = ray.ray.origin, d = ray.ray.direction;
-    const U = this.v.skinned()[0], F = this.faces;
+    const U = this.posed(), F = this.faces;
     let best = null;
     for (let f = 0; f < F.length; f += 3) {    // Moller-Trumbore, both sides
       const i0 = 3 * F[f], i1 = 3 * F[f + 1], i2 = 3 * F[f + 2];
@@ -349,7 +410,7 @@ export class WeightEditor {
     if (!hit) return;                          // off the mesh: the orbit controls have it
     e.stopImmediatePropagation();
     e.preventDefault();
-    this.v.controls.enabled = false;
+    this.view.controls.enabled = false;
     try { this.canvas.setPointerCapture(e.pointerId); } catch (_) { /* synthetic */ }
     this.beginStroke(e.pointerId);
     this.dab(hit, e.clientX, e.clientY);
@@ -372,196 +433,169 @@ export class WeightEditor {
     if (!this.stroke || e.pointerId !== this.stroke.id) return;
     e.stopImmediatePropagation();
     try { this.canvas.releasePointerCapture(e.pointerId); } catch (_) { /* synthetic */ }
-    this.v.controls.enabled = true;
+    this.view.controls.enabled = true;
     this.endStroke();
   }
 
   beginStroke(id) {
-    this.stroke = { id, saved: new Map(), dabs: [], last: null,
-                    mode: this.settings.mode, bone: this.settings.bone };
+    this.stroke = { id, dabs: [], last: null, mode: this.settings.mode, bone: this.settings.bone,
+                    mirror: this.store.mirror };
   }
 
-  /** Keep a vertex's rows as they were before this step. */
-  save(r) {
-    const saved = this.stroke.saved, b = this.b;
-    if (saved.has(r)) return;
-    saved.set(r, [this.W.slice(r * b, (r + 1) * b), this.E.slice(r * b, (r + 1) * b)]);
-  }
-
-  /** One dab of the brush at a surface point. */
-  dab(hit, x, y) {
-    const s = this.settings, st = this.stroke, b = this.b, i = st.bone, n = this.n;
-    const R = this.rest, c = hit.rest, r2 = s.radius * s.radius, fall = FALL[s.falloff];
-    const X = st.mode === "bone" ? this.W : this.E;
-    const inside = [], amount = [];
-    for (let v = 0; v < n; v++) {
-      const dx = R[3 * v] - c[0], dy = R[3 * v + 1] - c[1], dz = R[3 * v + 2] - c[2];
-      const d2 = dx * dx + dy * dy + dz * dz;
-      if (d2 >= r2) continue;
-      const a = s.strength * fall(Math.sqrt(d2) / s.radius);
-      if (a > 0) { inside.push(v); amount.push(a); }
+  /** Remember a changed vertex of this dab (growing the reusable list). */
+  mark(v, count) {
+    if (count === this.changed.length) {
+      const c = new Int32Array(2 * count);
+      c.set(this.changed);
+      this.changed = c;
     }
-    // smoothing averages the neighbours' values from before this dab
-    const before = s.op === "smooth" ? inside.map((v) => {
-      const nb = this.neighbours[v];
-      if (!nb.length) return X[v * b + i];
-      let m = 0;
-      for (const u of nb) m += X[u * b + i];
-      return m / nb.length;
-    }) : null;
-    const changed = [];
-    inside.forEach((v, k) => {
-      const old = X[v * b + i], a = amount[k];
-      let t = s.op === "add" ? old + a : s.op === "subtract" ? old - a : old + a * (before[k] - old);
-      t = Math.min(1, Math.max(0, t));
-      if (t === old) return;
-      this.save(v);
-      if (st.mode === "bone") { if (this.setBoneWeight(v, i, t)) changed.push(v); } else {
-        this.E[v * b + i] = t;
-        changed.push(v);
-      }
-    });
-    st.dabs.push({ rest: hit.rest.slice(), posed: hit.posed.slice(), x, y, radius: s.radius });
-    st.last = hit.rest;
-    if (changed.length) this.updateRows(changed);
-    this.showRing(hit);
+    this.changed[count] = v;
+    return count + 1;
   }
 
   /**
-   * W[v, i] = t with the row summing to 1: the other bones are scaled by
-   * (1 - t) / (their sum). Where the painted bone had all the weight, 1 - t goes to
-   * the other bones in the proportions of the vertex's mesh neighbours' weights; when
-   * those have none either, to the bone's parent, else its first child, else the
-   * next bone. A rig of one bone keeps its weights (1 everywhere). Returns whether
-   * the row changed.
+   * Paint column i of W (mode "bone") or E with the brush's current cover (brush.ids,
+   * brush.amount); the changed vertices are added to this.changed from `count`.
    */
-  setBoneWeight(v, i, t) {
-    const b = this.b, W = this.W, o = v * b;
-    if (b === 1) return false;
-    const row = new Float64Array(b);
-    let others = 0;
-    for (let j = 0; j < b; j++) { row[j] = W[o + j]; if (j !== i) others += row[j]; }
-    row[i] = t;
-    if (others > 0) {
-      const k = (1 - t) / others;
-      for (let j = 0; j < b; j++) if (j !== i) row[j] *= k;
-    } else if (t < 1) {
-      const share = new Float64Array(b);
-      let total = 0;
-      for (const u of this.neighbours[v]) {
-        for (let j = 0; j < b; j++) if (j !== i) { share[j] += W[u * b + j]; total += W[u * b + j]; }
+  paintCover(mode, i, op, count) {
+    const brush = this.brush, W = this.W, E = this.E, b = this.b;
+    const m = brush.apply(mode === "bone" ? W : E, b, i, op);
+    const opts = { locked: this.locked, nbrs: this.nbrs, parents: this.parents, scratch: this.scratch };
+    for (let q = 0; q < m; q++) {
+      const v = brush.ids[q], t = brush.values[q];
+      this.log.keep(W, E, v);
+      if (mode === "bone") {
+        if (setBoneWeight(W, b, v, i, t, opts)) count = this.mark(v, count);
+      } else {
+        E[v * b + i] = t;
+        count = this.mark(v, count);
       }
-      if (!(total > 0)) {
-        let j = this.parents[i];
-        if (!(j >= 0)) j = this.parents.indexOf(i);
-        if (!(j >= 0)) j = (i + 1) % b;
-        share[j] = 1; total = 1;
+    }
+    return count;
+  }
+
+  /** One dab of the brush at a surface point; returns the milliseconds it took. */
+  dab(hit, x, y) {
+    const t0 = performance.now();
+    const s = this.settings, st = this.stroke, i = st.bone, brush = this.brush;
+    const stamp = ++this.dabCount;
+    const covered = brush.cover(hit.rest, s);
+    let count = 0;
+    let mids = null, mamt = null, mcount = 0, j = i;
+    if (st.mirror) {
+      // the mirror vertices of the cover, each once (the largest amount), for the mirror
+      // bone; where that is the same bone, vertices the dab covers itself are left out
+      const maps = this.mirror();
+      j = maps.bones[i];
+      mids = new Int32Array(brush.count); mamt = new Float64Array(brush.count);
+      const own = j === i ? stamp : -1, slot = new Map();
+      if (own > 0) for (let q = 0; q < brush.count; q++) this.stamp[brush.ids[q]] = own;
+      for (let q = 0; q < brush.count; q++) {
+        const u = maps.vertices[brush.ids[q]], a = brush.amount[q];
+        if (this.stamp[u] === own) continue;
+        const k = slot.get(u);
+        if (k === undefined) { slot.set(u, mcount); mids[mcount] = u; mamt[mcount++] = a; } else if (a > mamt[k]) mamt[k] = a;
       }
-      for (let j = 0; j < b; j++) if (j !== i) row[j] = (1 - t) * share[j] / total;
     }
-    let sum = 0;
-    for (let j = 0; j < b; j++) sum += row[j];
-    let same = true;
-    for (let j = 0; j < b; j++) {
-      const w = Math.fround(row[j] / sum);
-      if (w !== W[o + j]) same = false;
-      W[o + j] = w;
+    count = this.paintCover(st.mode, i, s.op, count);
+    if (mcount) {
+      brush.ids.set(mids.subarray(0, mcount));
+      brush.amount.set(mamt.subarray(0, mcount));
+      brush.count = mcount;
+      count = this.paintCover(st.mode, j, s.op, count);
     }
-    return !same;
+    if (count) {
+      const rows = this.changed.subarray(0, count).sort();
+      let m = 0;                       // a vertex painted twice (mirror) counts once
+      for (let q = 0; q < count; q++) if (q === 0 || rows[q] !== rows[q - 1]) rows[m++] = rows[q];
+      this.refreshRows(rows, m);
+    }
+    const ms = performance.now() - t0;
+    st.dabs.push({ rest: hit.rest.slice(), posed: hit.posed.slice(), x, y, radius: s.radius, ms, covered });
+    st.last = hit.rest;
+    this.showRing(hit);
+    return ms;
   }
 
   endStroke() {
     const st = this.stroke;
     this.stroke = null;
-    this.lastStroke = { mode: st.mode, bone: st.bone, dabs: st.dabs, vertices: 0 };
-    const entry = this.entryFromSaved(st.saved, st.mode === "bone" ? "paint bone weights" : "paint endpoint weights");
-    if (entry) { this.push(entry); this.lastStroke.vertices = entry.rows.length; }
-  }
-
-  /** An undo step from the rows saved before a change (only rows that changed). */
-  entryFromSaved(saved, label) {
-    const b = this.b, rows = [];
-    for (const [r, [w0, e0]] of saved) {
-      for (let j = 0; j < b; j++) {
-        if (w0[j] !== this.W[r * b + j] || e0[j] !== this.E[r * b + j]) { rows.push(r); break; }
-      }
+    this.lastStroke = { mode: st.mode, bone: st.bone, mirror: st.mirror, dabs: st.dabs, vertices: 0 };
+    const change = this.log.take(this.W, this.E);
+    if (change) {
+      this.record(change, st.mode === "bone" ? "paint bone weights" : "paint endpoint weights");
+      this.lastStroke.vertices = change.rows.length;
     }
-    if (!rows.length) return null;
-    rows.sort((p, q) => p - q);
-    const m = rows.length, e = { label, rows: Int32Array.from(rows),
-      Wb: new Float32Array(m * b), Eb: new Float32Array(m * b),
-      Wa: new Float32Array(m * b), Ea: new Float32Array(m * b) };
-    rows.forEach((r, k) => {
-      const [w0, e0] = saved.get(r);
-      e.Wb.set(w0, k * b); e.Eb.set(e0, k * b);
-      e.Wa.set(this.W.subarray(r * b, (r + 1) * b), k * b);
-      e.Ea.set(this.E.subarray(r * b, (r + 1) * b), k * b);
-    });
-    return e;
   }
 
-  push(entry) {
-    this.undoStack.push(entry);
-    if (this.undoStack.length > UNDO_LIMIT) this.undoStack.shift();
-    this.redoStack.length = 0;
-    this.updateButtons();
+  /** A change already made, as a History command that restores the rows bit for bit. */
+  record(change, name) {
+    this.weightsVersion++;
+    const apply = (which) => {
+      if (this.stroke) throw new Error("weights: a stroke is in progress");
+      restoreRows(this.W, this.E, this.b, change, which);
+      this.weightsVersion++;
+      this.refreshRows(change.rows, change.rows.length);
+      this.requestRender();
+    };
+    this.history.push({ name, execute: () => apply("after"), undo: () => apply("before") });
   }
 
-  restore(entry, which) {
-    const b = this.b, Wx = which === "before" ? entry.Wb : entry.Wa, Ex = which === "before" ? entry.Eb : entry.Ea;
-    entry.rows.forEach((r, k) => {
-      this.W.set(Wx.subarray(k * b, (k + 1) * b), r * b);
-      this.E.set(Ex.subarray(k * b, (k + 1) * b), r * b);
-    });
-    this.updateRows(entry.rows);
+  get undoStack() { return this.history.undos; }
+  get redoStack() { return this.history.redos; }
+
+  /** One step back on the page's History; resolves to whether there was one. */
+  async undo() {
+    if (this.stroke) return false;
+    return (await this.history.undo()) !== null;
   }
 
-  undo() {
-    if (this.stroke || !this.undoStack.length) return false;
-    const e = this.undoStack.pop();
-    this.restore(e, "before");
-    this.redoStack.push(e);
-    this.updateButtons();
-    return true;
+  async redo() {
+    if (this.stroke) return false;
+    return (await this.history.redo()) !== null;
   }
 
-  redo() {
-    if (this.stroke || !this.redoStack.length) return false;
-    const e = this.redoStack.pop();
-    this.restore(e, "after");
-    this.undoStack.push(e);
-    this.updateButtons();
-    return true;
-  }
-
-  onKey(e) {
-    if (this.settings.mode === "off") return;
-    if (!(e.ctrlKey || e.metaKey) || e.key.toLowerCase() !== "z") return;
-    const t = e.target;
-    if (t && (t.tagName === "INPUT" || t.tagName === "SELECT") && t.type !== "range") return;
-    e.preventDefault();
-    e.stopImmediatePropagation();       // painting's undo, not the pose's
-    if (e.shiftKey) this.redo(); else this.undo();
-  }
-
-  /** Replace column E[:, i] (one undo step); returns whether anything changed. */
+  /** Replace column E[:, i] (one command); returns whether anything changed. */
   setEndpointColumn(i, col, label) {
-    const b = this.b, saved = new Map();
+    const b = this.b;
     for (let r = 0; r < this.n; r++) {
       const e = Math.fround(col[r]);
       if (e === this.E[r * b + i]) continue;
-      saved.set(r, [this.W.slice(r * b, (r + 1) * b), this.E.slice(r * b, (r + 1) * b)]);
+      this.log.keep(this.W, this.E, r);
       this.E[r * b + i] = e;
     }
-    const entry = this.entryFromSaved(saved, label);
-    if (!entry) return false;
-    this.push(entry);
-    this.updateRows(entry.rows);
+    const change = this.log.take(this.W, this.E);
+    if (!change) return false;
+    this.refreshRows(change.rows, change.rows.length);
+    this.requestRender();
+    this.record(change, label);
     return true;
   }
 
   weights() {
     return { W: this.W.slice(), E: this.E.slice() };
+  }
+
+  /**
+   * `count` dabs of the current brush along the rest mesh (a vertex every
+   * n / count apart), each timed as a stroke's dab (brush, W/E update, layout, upload);
+   * then undone. Resolves to the median milliseconds (stbs bench --viewer).
+   */
+  timeDabs(count = 50, mode = "bone") {
+    if (this.stroke) throw new Error("weights: a stroke is in progress");
+    const times = [];
+    this.beginStroke(-1);
+    this.stroke.mode = mode;
+    const step = Math.max(1, Math.floor(this.n / Math.max(1, count)));
+    for (let k = 0; k < count; k++) {
+      const v = (k * step) % this.n, R = this.rest;
+      const p = [R[3 * v], R[3 * v + 1], R[3 * v + 2]];
+      times.push(this.dab({ rest: p, posed: p, normal: [0, 0, 1] }, 0, 0));
+    }
+    this.endStroke();
+    times.sort((a, b) => a - b);
+    const m = times.length >> 1;
+    return this.undo().then(() => (times.length % 2 ? times[m] : 0.5 * (times[m - 1] + times[m])));
   }
 
   // ------------------------------------------------------------------ the server
@@ -600,40 +634,41 @@ export class WeightEditor {
 
   // ------------------------------------------------------------------ the curve
   splinePointsOf(i) {
-    const f = this.filters.get(i);
+    const f = this.filters[i];
     return f ? f.points.map((p) => p.slice()) : [[0, 0], [1, 1]];
   }
 
   /** Preview a curve for bone i (its inner points; ends optional): the shader uses f(E). */
   setSpline(bone, points) {
     const i = this.boneIndex(bone), f = splineFilter(points);
-    if (f.identity) this.filters.delete(i); else this.filters.set(i, f);
+    this.filters[i] = f.identity ? null : f;
     if (this.curve && i === this.settings.bone) this.curve.set(f.points.slice(1, -1));
-    this.updateRows(this.rowsOf(i));
+    this.refreshRows(this.rowsOf(i));
+    this.requestRender();
     return f.points.map((p) => p.slice());
   }
 
-  /** Rows where bone i is among the top 4 (whose E4 can change with i's curve). */
+  /** Rows where bone i has weight (whose E4 can change with i's curve). */
   rowsOf(i) {
     const b = this.b, rows = [];
     for (let r = 0; r < this.n; r++) if (this.W[r * b + i] > 0) rows.push(r);
-    return rows;
+    return Int32Array.from(rows);
   }
 
   splineValues(bone, xs) {
-    const i = this.boneIndex(bone), f = this.filters.get(i) || splineFilter([]);
+    const i = this.boneIndex(bone), f = this.filters[i] || splineFilter([]);
     return Array.from(xs, (x) => f(x));
   }
 
-  /** Bake bone i's curve into E[:, i] (one undo step); the curve is then the identity. */
+  /** Bake bone i's curve into E[:, i] (one command); the curve is then the identity. */
   applySpline(bone) {
-    const i = this.boneIndex(bone), f = this.filters.get(i);
+    const i = this.boneIndex(bone), f = this.filters[i];
     if (!f) return false;
     const col = new Float64Array(this.n);
     for (let r = 0; r < this.n; r++) col[r] = f(this.E[r * this.b + i]);
-    this.filters.delete(i);
+    this.filters[i] = null;
     if (this.curve && i === this.settings.bone) this.curve.set([]);
-    if (!this.setEndpointColumn(i, col, "apply the endpoint curve")) this.updateRows(this.rowsOf(i));
+    if (!this.setEndpointColumn(i, col, "apply the endpoint curve")) this.refreshRows(this.rowsOf(i));
     return true;
   }
 
@@ -648,7 +683,7 @@ export class WeightEditor {
         sel.appendChild(o);
       });
     };
-    fill($("color-mode"), COLOR_MODES);
+    fill($("color-mode"), COLOR_MODES, ["shaded", "bones", "endpoint weight (heat)", "bone weight (heat)"]);
     fill($("paint-mode"), PAINT_MODES, ["off", "bone weights", "endpoint weights"]);
     fill($("paint-op"), PAINT_OPS);
     fill($("paint-falloff"), FALLOFFS);
@@ -659,13 +694,14 @@ export class WeightEditor {
     $("paint-falloff")?.addEventListener("change", () => this.setPaint({ falloff: $("paint-falloff").value }));
     const radius = $("paint-radius");
     if (radius) {
-      radius.min = String(this.v.diag / 200); radius.max = String(this.v.diag / 2);
-      radius.step = String(this.v.diag / 1000);
+      radius.min = String(this.view.diag / 200); radius.max = String(this.view.diag / 2);
+      radius.step = String(this.view.diag / 1000);
       radius.addEventListener("input", () => this.setPaint({ radius: Number(radius.value) }));
     }
     $("paint-strength")?.addEventListener("input", () => this.setPaint({ strength: Number($("paint-strength").value) }));
     $("paint-undo")?.addEventListener("click", () => this.undo());
     $("paint-redo")?.addEventListener("click", () => this.redo());
+    this.history.events?.on("history", () => this.updateButtons());
     $("save-rig")?.addEventListener("click", () => this.uiCall(() => this.saveRig(), (r) => `saved ${r.path}`));
     $("endpoint-recompute")?.addEventListener("click", () => {
       const m = $("endpoint-method").value;
@@ -673,6 +709,7 @@ export class WeightEditor {
                   () => `${this.names[this.settings.bone]}: endpoint weights by ${m}`, `computing (${m})...`);
     });
     $("bone")?.addEventListener("change", () => this.selectBone(Number($("bone").value) || 0, false));
+    this.buildLockAndMirror($("paint-mode"));
     const canvas = $("spline");
     if (canvas) {
       this.curve = new SplineEditor(canvas, (inner) => {
@@ -683,12 +720,39 @@ export class WeightEditor {
     $("weights-panel")?.addEventListener("toggle", () => this.curve && this.curve.draw());
     $("spline-apply")?.addEventListener("click", () => this.applySpline(this.settings.bone));
     $("spline-reset")?.addEventListener("click", () => this.setSpline(this.settings.bone, []));
-    if ($("save-rig") && !(this.v.summary.save && this.v.summary.save.rig)) {
+    if ($("save-rig") && !(this.summary.save && this.summary.save.rig)) {
       $("save-rig").disabled = true;
       $("save-rig").title = "start stbs view with --save-as PATH to save the rig";
     }
     this.showSettings();
     this.updateButtons();
+  }
+
+  /** The lock (selected bone) and X-mirror checkboxes, after the paint menu's row. */
+  buildLockAndMirror(after) {
+    const row = document.createElement("div");
+    row.className = "row";
+    row.id = "paint-locks";
+    const box = (id, text, title) => {
+      const label = document.createElement("label"), input = document.createElement("input");
+      input.type = "checkbox";
+      input.id = id;
+      label.title = title;
+      label.append(input, ` ${text}`);
+      row.appendChild(label);
+      return input;
+    };
+    const lock = box("paint-lock", "lock", "lock the selected bone's weights: painting other bones leaves them");
+    const mirror = box("paint-mirror", "X-mirror", "each dab also paints the mirror bone on the mirror side (x = centre)");
+    const list = document.createElement("span");
+    list.id = "paint-locked";
+    list.className = "muted";
+    row.appendChild(list);
+    lock.addEventListener("change", () => this.setLock(this.settings.bone, lock.checked));
+    mirror.addEventListener("change", () => this.store.setMirror(mirror.checked));
+    const anchor = after && after.closest ? after.closest("label") || after : null;
+    if (anchor && anchor.parentNode) anchor.parentNode.insertBefore(row, anchor.nextSibling);
+    else (document.getElementById("weights-panel") || document.body).appendChild(row);
   }
 
   async uiCall(f, done, busy) {
@@ -710,12 +774,16 @@ export class WeightEditor {
     if ($("paint-radius-value")) $("paint-radius-value").textContent = s.radius.toPrecision(3);
     if ($("paint-strength")) $("paint-strength").value = String(s.strength);
     if ($("paint-strength-value")) $("paint-strength-value").textContent = s.strength.toFixed(2);
+    if ($("paint-lock")) $("paint-lock").checked = !!this.locked[s.bone];
+    if ($("paint-mirror")) $("paint-mirror").checked = this.store.mirror;
+    const locked = this.lockedBones();
+    if ($("paint-locked")) $("paint-locked").textContent = locked.length ? `locked: ${locked.map((i) => this.names[i]).join(", ")}` : "";
     this.canvas.classList.toggle("painting", s.mode !== "off");
   }
 
   updateButtons() {
     const u = document.getElementById("paint-undo"), r = document.getElementById("paint-redo");
-    if (u) u.disabled = !this.undoStack.length;
-    if (r) r.disabled = !this.redoStack.length;
+    if (u) u.disabled = !this.history.canUndo;
+    if (r) r.disabled = !this.history.canRedo;
   }
 }

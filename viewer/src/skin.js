@@ -158,7 +158,7 @@ in vec4 stbsIndex;
 in vec4 stbsWeight;
 in vec4 stbsEnd;
 in vec2 stbsSel;            // the selected bone's (W, f(E)) at this vertex (paint.js)
-uniform int uColorMode;     // 0 shaded, 1 bones, 2 endpoint (paint.js COLOR_MODES)
+uniform int uColorMode;     // 0 shaded, 1 bones, 2 endpoint, 3 weight (paint.js COLOR_MODES)
 out vec3 vNormal;
 out vec3 vView;
 out vec3 vTint;
@@ -167,7 +167,7 @@ out float vColorMode;
 vec3 boneHue(float i) {
   return 0.5 + 0.5 * cos(6.28318 * (fract(i * 0.618034) + vec3(0.0, 0.33, 0.67)));
 }
-// endpoint heat map: 0 blue, 0.25 cyan, 0.5 green, 0.75 yellow, 1 red
+// heat map of a weight in [0, 1]: 0 blue, 0.25 cyan, 0.5 green, 0.75 yellow, 1 red
 vec3 stbsHeat(float e) {
   float t = clamp(e, 0.0, 1.0) * 4.0;
   vec3 c0 = vec3(0.10, 0.15, 0.85), c1 = vec3(0.0, 0.75, 0.95), c2 = vec3(0.15, 0.85, 0.25);
@@ -182,7 +182,10 @@ void main() {
   stbsSkin(position, normal, stbsIndex, stbsWeight, stbsEnd, P, N);
   vTint = vec3(0.0);
   for (int k = 0; k < 4; k++) vTint += stbsWeight[k] * boneHue(stbsIndex[k]);
-  if (uColorMode == 2) vTint = stbsSel.x > 1e-7 ? stbsHeat(stbsSel.y) : vec3(0.5);   // 1e-7: "zero" bone weight (paper §3)
+  // the selected bone's endpoint weight f(E) where its bone weight is not zero (1e-7:
+  // "zero" in the paper's §3), grey elsewhere; or its bone weight W everywhere
+  if (uColorMode == 2) vTint = stbsSel.x > 1e-7 ? stbsHeat(stbsSel.y) : vec3(0.5);
+  if (uColorMode == 3) vTint = stbsHeat(stbsSel.x);
   vColorMode = float(uColorMode);
   vUv = uv;
   vec4 mv = modelViewMatrix * vec4(P, 1.0);
