@@ -123,14 +123,55 @@ def test_view_mesh_and_skeleton_rigs_first_and_saves_as_asked(tmp_path):
               "projection", "--save-as", tmp_path / "out" / "mine.npz", cwd=tmp_path) as v:
         info = json.loads(v.get("/api/rig")[1])
         assert info["vertices"] == 74 and info["bones"] == 2 and info["has_E"]
+        # the rig it built is written before the URL; the page replaces it when it asks
+        written = (tmp_path / "out" / "mine.npz").read_bytes()
         status, body = v.get("/api/save-rig", method="POST")
+        assert status == 409 and "overwrite" in json.loads(body)["error"]
+        assert (tmp_path / "out" / "mine.npz").read_bytes() == written
+        status, body = v.get("/api/save-rig", method="POST", body=b'{"overwrite": true}')
         assert status == 200 and json.loads(body)["path"] == str(tmp_path / "out" / "mine.npz")
         status, body = v.get("/api/save-pose", method="POST", body=b"{}")
         assert json.loads(body)["path"] == str(tmp_path / "out" / "bar-pose-001.json")
-        code, out, _ = v.stop()
+        code, out, err = v.stop()
     assert code == 0 and out == ""
+    # rigging progress on stderr (the pipeline's stages), then where the rig went
+    assert "stbs rig: read mesh ..." in err and "stbs rig: bone heat ..." in err, err
+    assert "bone heat: [###" in err and "3/3" in err, err
+    assert f"stbs view: rig written to {tmp_path / 'out' / 'mine.npz'}" in err
     saved = load_rig(tmp_path / "out" / "mine.npz")
     assert saved.W.shape == (74, 2) and np.allclose(np.asarray(saved.W).sum(axis=1), 1)
+
+
+def test_view_mesh_and_skeleton_never_replaces_a_rig_file_without_force(capsys, tmp_path):
+    rig = bar_rig()
+    write_mesh(tmp_path / "bar.obj", rig.V, rig.F)
+    write_tgf(tmp_path / "bar.tgf", rig.C, rig.BE)
+    (tmp_path / "bar.npz").write_bytes(b"mine")
+    one_error(capsys, tmp_path / "bar.obj", tmp_path / "bar.tgf", "--bone", "heat",
+              words=f"{str(tmp_path / 'bar.npz')!r} exists")
+    code, out, err = run(capsys, tmp_path / "bar.obj", tmp_path / "bar.tgf")
+    assert "--force" in err
+    assert (tmp_path / "bar.npz").read_bytes() == b"mine"
+    one_error(capsys, tmp_path / "bar.npz", "--force", words="--force applies to MESH SKELETON")
+    with View(tmp_path / "bar.obj", tmp_path / "bar.tgf", "--bone", "heat", "--endpoint",
+              "projection", "--force", cwd=tmp_path) as v:
+        assert json.loads(v.get("/api/rig")[1])["vertices"] == 74
+        code, out, _ = v.stop()
+    assert code == 0 and load_rig(tmp_path / "bar.npz").W.shape == (74, 2)
+
+
+def test_a_missing_page_bundle_is_one_line_saying_how_to_get_it(capsys, monkeypatch, rig_file,
+                                                                tmp_path):
+    import stbs.viewer.static
+
+    empty = tmp_path / "static"
+    empty.mkdir()
+    monkeypatch.setattr(stbs.viewer.static, "STATIC_DIR", empty)
+    one_error(capsys, rig_file, words="lacks the viewer's page")
+    code, out, err = run(capsys, rig_file)
+    assert "viewer.js" in err and "reinstall" in err and "make" in err
+    monkeypatch.undo()
+    assert stbs.viewer.static.page_missing() is None       # this checkout has its bundle
 
 
 @pytest.mark.parametrize("args, name, b, extras", [

@@ -32,7 +32,10 @@ rig to --save-as (.npz, or .glb/.gltf: a glTF character's own file with the page
 endpoint weights, and its painted bone weights, added), or beside the input: RIG.npz
 is saved as RIG-edited.npz (never over the input unless --save-as names it), CHAR.glb
 as CHAR-edited.glb, MESH as MESH.npz; for an --example only with --save-as. Files are
-written to a temporary file and renamed.
+written to a temporary file and renamed, and the page replaces an existing file only
+when asked to. MESH SKELETON is rigged (each stage said on stderr) and written to
+MESH.npz (or --save-as) before the server starts; an existing file there is replaced
+only with --force.
 
 The page draws the rig lit and shaded with its skeleton, skins it in a vertex shader
 with any of the four methods (lbs, dqs, stbs-lbs, stbs-dqs), two of them side by side
@@ -91,6 +94,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                         "(default: auto), or tets read from FILE")
     add_clip_argument(g)
     add_tol_argument(g)
+    g.add_argument("--force", action="store_true",
+                   help="replace the rig file MESH SKELETON writes (MESH.npz, or --save-as) "
+                        "when it exists")
 
 
 def requires(args: argparse.Namespace) -> list[str]:
@@ -105,24 +111,45 @@ def requires(args: argparse.Namespace) -> list[str]:
 
 def _check(args: argparse.Namespace):
     """The run's plan from its arguments, before any work: (kind, save target)."""
-    from pathlib import Path
+    kind = _kind(args)
+    _check_options(args, kind)
+    _check_motion(args)
+    from ._errors import CommandError
 
+    if not 0 <= args.port <= 65535:
+        raise CommandError(f"--port: expected 0..65535 (0: a free port), got {args.port}")
+    save_as = _check_save_as(args)
+    _check_input(args, kind)
+    if kind == "mesh":
+        _check_rig_output(args, _targets(kind, args.input, save_as)[0])
+    elif args.force:
+        raise CommandError("--force applies to MESH SKELETON, whose rig stbs view writes")
+    return kind, save_as
+
+
+def _kind(args: argparse.Namespace) -> str:
+    """"example", "rig" (a rig or character file) or "mesh" (MESH SKELETON)."""
     from ._errors import CommandError
 
     if args.example is not None and args.input is not None:
         raise CommandError(f"give a rig (RIG.npz or MESH SKELETON) or --example "
                            f"{args.example}, not both")
-    rig_ext = _rig_extensions()
     if args.input is None:
-        kind = "example"
-    elif args.skeleton is None:
-        if not args.input.lower().endswith(rig_ext):
-            raise CommandError(f"{args.input!r}: expected a rig (.npz, or a character "
-                               f"{' '.join(e for e in rig_ext if e != '.npz')}), or a MESH "
-                               f"followed by its SKELETON")
-        kind = "rig"
-    else:
-        kind = "mesh"
+        return "example"
+    if args.skeleton is not None:
+        return "mesh"
+    rig_ext = _rig_extensions()
+    if not args.input.lower().endswith(rig_ext):
+        raise CommandError(f"{args.input!r}: expected a rig (.npz, or a character "
+                           f"{' '.join(e for e in rig_ext if e != '.npz')}), or a MESH "
+                           f"followed by its SKELETON")
+    return "rig"
+
+
+def _check_options(args: argparse.Namespace, kind: str) -> None:
+    """The character and rigging options apply to their kinds of input only."""
+    from ._errors import CommandError
+
     character = {"--skin": args.skin, "--mesh": args.mesh}
     given = [k for k, v in character.items() if v is not None]
     if given and (kind != "rig" or args.input.lower().endswith(".npz")):
@@ -133,6 +160,13 @@ def _check(args: argparse.Namespace):
     given = [k for k, v in rigging.items() if v is not None]
     if given and kind != "mesh":
         raise CommandError(f"{given[0]} applies to MESH SKELETON, which stbs view rigs first")
+
+
+def _check_motion(args: argparse.Namespace) -> None:
+    from pathlib import Path
+
+    from ._errors import CommandError
+
     if args.motion is not None:
         from ..bake import MOTION_EXTENSIONS
 
@@ -147,26 +181,51 @@ def _check(args: argparse.Namespace):
                                "are a capture's)")
         if not Path(args.mapping).is_file():
             raise CommandError(f"--mapping {args.mapping!r}: file not found")
-    if not 0 <= args.port <= 65535:
-        raise CommandError(f"--port: expected 0..65535 (0: a free port), got {args.port}")
-    save_as = None
-    if args.save_as is not None:
-        save_as = Path(args.save_as)
-        folder = save_as.parent if str(save_as.parent) else Path(".")
-        from ..viewer.server import RIG_TARGETS
 
-        if save_as.suffix.lower() not in RIG_TARGETS:
-            raise CommandError(f"--save-as {args.save_as!r}: expected a rig file "
-                               f"({', '.join(RIG_TARGETS)})")
-        if not folder.is_dir():
-            raise CommandError(f"--save-as {args.save_as!r}: folder {str(folder)!r} does "
-                               f"not exist")
-        if save_as.is_dir():
-            raise CommandError(f"--save-as {args.save_as!r}: is a folder, expected a file")
+
+def _check_save_as(args: argparse.Namespace):
+    """--save-as as a Path (a rig file in an existing folder), or None."""
+    from pathlib import Path
+
+    from ._errors import CommandError
+
+    if args.save_as is None:
+        return None
+    save_as = Path(args.save_as)
+    folder = save_as.parent if str(save_as.parent) else Path(".")
+    from ..viewer.state import RIG_TARGETS
+
+    if save_as.suffix.lower() not in RIG_TARGETS:
+        raise CommandError(f"--save-as {args.save_as!r}: expected a rig file "
+                           f"({', '.join(RIG_TARGETS)})")
+    if not folder.is_dir():
+        raise CommandError(f"--save-as {args.save_as!r}: folder {str(folder)!r} does "
+                           f"not exist")
+    if save_as.is_dir():
+        raise CommandError(f"--save-as {args.save_as!r}: is a folder, expected a file")
+    return save_as
+
+
+def _check_input(args: argparse.Namespace, kind: str) -> None:
+    from pathlib import Path
+
+    from ._errors import CommandError
+
     if kind != "example" and not Path(args.input).is_file():
         what = "rig" if kind == "rig" else "mesh"
         raise CommandError(f"{args.input!r}: {what} file not found")
-    return kind, save_as
+
+
+def _check_rig_output(args: argparse.Namespace, target) -> None:
+    """MESH SKELETON: the rig file this run writes must not exist, unless --force."""
+    import os
+
+    from ._errors import CommandError
+
+    if os.path.lexists(target) and not args.force:
+        raise CommandError(f"{str(target)!r} exists: stbs view MESH SKELETON writes the rig "
+                           "it builds there; pass --force to replace it (or --save-as "
+                           "another file)")
 
 
 def _rig_extensions() -> tuple[str, ...]:
@@ -221,15 +280,22 @@ def _example(name: str):
     return build_rig(m.V, m.sk, F=m.F, bone="heat", endpoint="heat"), {}
 
 
-def _rig_from_files(args: argparse.Namespace):
-    """MESH SKELETON rigged as ``stbs rig`` does (outlines with its default options)."""
+def _rig_from_files(args: argparse.Namespace, target):
+    """MESH SKELETON rigged as ``stbs rig`` does (outlines with its default options), each
+    stage said on stderr as it starts, then written to ``target`` (atomically)."""
+    from ..io import write_rig
     from .rig import _Stages, resolve_tol, rig_from_files
 
     bone = args.bone or "bbw"
     endpoint = args.endpoint or "bbw"
     tol = resolve_tol(args.tol, bone, endpoint)
-    return rig_from_files(_Stages(), args.input, args.skeleton, bone=bone, endpoint=endpoint,
-                          tets=args.tets or "auto", tol=tol, clip_skeleton=args.clip_skeleton)
+    stages = _Stages()
+    stages.live = True      # the progress of rigging, on stderr, terminal or not
+    rig = rig_from_files(stages, args.input, args.skeleton, bone=bone, endpoint=endpoint,
+                         tets=args.tets or "auto", tol=tol, clip_skeleton=args.clip_skeleton)
+    write_rig(target, rig)
+    print(f"stbs view: rig written to {target}", file=sys.stderr, flush=True)
+    return rig
 
 
 def _read_character(path: str, options: dict):
@@ -287,10 +353,10 @@ def _serve(args: argparse.Namespace, kind: str, save_as):
     elif kind == "rig":
         name = Path(args.input).stem
         rig, own = _read_character(args.input, character_options(args))
-    else:
-        name = Path(args.input).stem
-        rig = _rig_from_files(args)
     rig_target, pose_folder = _targets(kind, args.input, save_as)
+    if kind == "mesh":
+        name = Path(args.input).stem
+        rig = _rig_from_files(args, rig_target)
     source = args.input if kind == "rig" and _is_gltf(args.input) else None
     clip = _motion(args, rig, own)
     try:
@@ -308,9 +374,14 @@ def _serve(args: argparse.Namespace, kind: str, save_as):
 def run(args: argparse.Namespace) -> int:
     import warnings
 
+    from ..viewer.static import page_missing
+    from ._errors import CommandError
     from ._main import _flush
 
     kind, save_as = _check(args)
+    missing = page_missing()
+    if missing is not None:
+        raise CommandError(missing)
     # The server runs until Ctrl-C: say the warnings of loading and rigging now, not
     # when the command ends.
     with warnings.catch_warnings(record=True) as caught:
