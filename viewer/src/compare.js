@@ -6,8 +6,9 @@ import * as THREE from "three";
 import { METHODS } from "./skin.js";
 
 export class Compare {
-  constructor(viewer) {
-    this.v = viewer;
+  /** ctx: {view, ...}; the view's methodIndex is the left half's method. */
+  constructor(ctx) {
+    this.view = ctx.view;
     this.index = -1;                       // the right half's method; -1: one view
     this.size = new THREE.Vector2();
     const sel = document.getElementById("compare");
@@ -43,7 +44,7 @@ export class Compare {
     const sel = document.getElementById("compare");
     if (sel) sel.value = this.active ? METHODS[this.index] : "";
     this.showLabels();
-    this.v.resize();             // the camera's aspect follows the viewport's
+    this.view.resize();             // the camera's aspect follows the viewport's
     return this.method();
   }
 
@@ -53,7 +54,7 @@ export class Compare {
     el.hidden = !this.active;
     if (!this.active) return;
     const [l, r] = el.querySelectorAll("span");
-    if (l) l.textContent = METHODS[this.v.methodIndex];
+    if (l) l.textContent = METHODS[this.view.methodIndex];
     if (r) r.textContent = METHODS[this.index];
   }
 
@@ -62,7 +63,7 @@ export class Compare {
    * {left, top, width, height}. One view: the whole canvas for k = 0.
    */
   rect(k = 0) {
-    const c = this.v.renderer.domElement.getBoundingClientRect();
+    const c = this.view.renderer.domElement.getBoundingClientRect();
     if (!this.active) return { left: c.left, top: c.top, width: c.width, height: c.height };
     const half = Math.floor(c.width / 2);
     return k === 0 ? { left: c.left, top: c.top, width: half, height: c.height }
@@ -80,20 +81,20 @@ export class Compare {
 
   /** Draw both halves: the same scene, camera and material, two uMethod values. */
   render() {
-    const { renderer, scene, camera, material } = this.v;
+    const { renderer, scene, camera } = this.view;
     renderer.getSize(this.size);
     const w = this.size.x, h = this.size.y, half = Math.floor(w / 2);
-    const primary = this.v.methodIndex;
+    const primary = this.view.methodIndex;
     renderer.setScissorTest(true);
     try {
       for (const [x, width, method] of [[0, half, primary], [half, w - half, this.index]]) {
         renderer.setViewport(x, 0, width, h);
         renderer.setScissor(x, 0, width, h);
-        material.uniforms.uMethod.value = method;
+        this.view.setUniform("uMethod", method);
         renderer.render(scene, camera);
       }
     } finally {
-      material.uniforms.uMethod.value = primary;
+      this.view.setUniform("uMethod", primary);
       renderer.setScissorTest(false);
       renderer.setViewport(0, 0, w, h);
     }

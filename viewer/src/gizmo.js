@@ -22,15 +22,17 @@ function circle() {
 }
 
 export class Gizmo {
-  constructor(viewer, bones) {
-    this.v = viewer;
+  /** ctx: {store, events, view, ...}; bones: the rig's Bones (ik.js). */
+  constructor(ctx, bones) {
+    this.store = ctx.store;
+    this.view = ctx.view;
     this.bones = bones;
     this.bone = null;
     this.group = new THREE.Group();
     this.group.visible = false;
     this.group.renderOrder = 3;
     const geom = circle();
-    const specs = viewer.dim === 3
+    const specs = bones.dim === 3
       ? [["x", [1, 0, 0], 0xff6060, 1], ["y", [0, 1, 0], 0x60e060, 1],
          ["z", [0, 0, 1], 0x6090ff, 1], ["view", null, 0xf0f0f0, 1.2]]
       : [["z", [0, 0, 1], 0xffd040, 1]];
@@ -42,15 +44,17 @@ export class Gizmo {
       this.group.add(line);
       return { name, axis, size, line };
     });
-    viewer.scene.add(this.group);
+    this.view.scene.add(this.group);
     const box = document.getElementById("gizmo");
     box?.addEventListener("change", () => this.set(box.checked ? this.selected() : null));
-    document.getElementById("bone")?.addEventListener("change", () => {
-      if (this.bone !== null) this.set(this.selected());
-    });
+    // the gizmo, when shown, is on the selected bone
+    ctx.events.on("select", ({ bone }) => { if (this.bone !== null && bone !== null) this.set(bone); });
   }
 
-  selected() { return Number(document.getElementById("bone")?.value) || 0; }
+  selected() {
+    const i = this.store.selection.bone;
+    return i === null ? 0 : i;
+  }
 
   /** Show the gizmo on a bone (index or name), or hide it (null). */
   set(bone) {
@@ -62,23 +66,22 @@ export class Gizmo {
         throw new Error(`gizmo: expected a bone index 0..${b.b - 1} or name, got ${JSON.stringify(bone)}`);
       }
       this.bone = i;
-      const sel = document.getElementById("bone");
-      if (sel && sel.value !== String(i)) { sel.value = String(i); sel.dispatchEvent(new Event("change")); }
+      this.store.select(i);
     }
     const box = document.getElementById("gizmo");
     if (box) box.checked = this.bone !== null;
-    this.v.render();
+    this.view.render();
     return this.bone;
   }
 
   center() {
-    const o = this.v.poseArrays.origins[this.bone];
-    return new THREE.Vector3(o[0], o[1], this.v.dim === 3 ? o[2] : 0);
+    const o = this.store.pose.origins[this.bone];
+    return new THREE.Vector3(o[0], o[1], this.bones.dim === 3 ? o[2] : 0);
   }
 
   /** World units per CSS pixel at point c, in the (left) viewport. */
   perPixel(c) {
-    const cam = this.v.camera, h = Math.max(this.v.viewRect().height, 1);
+    const cam = this.view.camera, h = Math.max(this.view.viewRect().height, 1);
     if (cam.isOrthographicCamera) return (cam.top - cam.bottom) / cam.zoom / h;
     const dist = c.distanceTo(cam.position);
     return 2 * dist * Math.tan(THREE.MathUtils.degToRad(0.5 * cam.fov)) / h;
@@ -87,7 +90,7 @@ export class Gizmo {
   /** The axis of a ring (the view ring: towards the camera). */
   axisOf(ring) {
     if (ring.axis) return new THREE.Vector3(...ring.axis);
-    const cam = this.v.camera;
+    const cam = this.view.camera;
     if (cam.isOrthographicCamera) return cam.getWorldDirection(new THREE.Vector3()).negate();
     return cam.position.clone().sub(this.center()).normalize();
   }
@@ -121,7 +124,7 @@ export class Gizmo {
   /** The gizmo on the page: {bone, name, center, radius, rings: [{name, axis, points}]}, or null. */
   info(rect) {
     if (this.bone === null) return null;
-    const c = this.center(), s = (p) => this.v.toScreen(p.x, p.y, p.z, rect);
+    const c = this.center(), s = (p) => this.view.toScreen(p.x, p.y, p.z, rect);
     return { bone: this.bone, name: this.bones.names[this.bone], center: s(c), radius: RING_PX,
              rings: this.rings.map((ring) => ({
                name: ring.name, axis: this.axisOf(ring).toArray(),
@@ -133,7 +136,7 @@ export class Gizmo {
     if (this.bone === null) return null;
     let best = null, bestD = PICK_PX;
     for (const ring of this.rings) {
-      const pts = this.worldRing(ring).map((q) => this.v.toScreen(q.x, q.y, q.z, p.rect));
+      const pts = this.worldRing(ring).map((q) => this.view.toScreen(q.x, q.y, q.z, p.rect));
       for (let k = 0; k < pts.length; k++) {
         const [ax, ay] = pts[k], [bx, by] = pts[(k + 1) % pts.length];
         const dx = bx - ax, dy = by - ay, l2 = dx * dx + dy * dy;
@@ -158,13 +161,13 @@ export class Gizmo {
       const pts = this.worldRing(ring);
       let g = pts[0], best = Infinity;
       for (const q of pts) {
-        const [sx, sy] = this.v.toScreen(q.x, q.y, q.z, p.rect), d = Math.hypot(sx - p.x, sy - p.y);
+        const [sx, sy] = this.view.toScreen(q.x, q.y, q.z, p.rect), d = Math.hypot(sx - p.x, sy - p.y);
         if (d < best) { best = d; g = q; }
       }
       const tangent = n.clone().cross(g.clone().sub(c)).normalize();
-      const s0 = this.v.toScreen(g.x, g.y, g.z, p.rect);
+      const s0 = this.view.toScreen(g.x, g.y, g.z, p.rect);
       const eps = g.clone().addScaledVector(tangent, RING_PX * this.perPixel(c));
-      const s1 = this.v.toScreen(eps.x, eps.y, eps.z, p.rect);
+      const s1 = this.view.toScreen(eps.x, eps.y, eps.z, p.rect);
       drag.tangent = [(s1[0] - s0[0]) / RING_PX, (s1[1] - s0[1]) / RING_PX];
     }
     return drag;
@@ -172,7 +175,7 @@ export class Gizmo {
 
   ray(p) {
     const ray = new THREE.Raycaster();
-    ray.setFromCamera(p.ndc, this.v.camera);
+    ray.setFromCamera(p.ndc, this.view.camera);
     return ray.ray;
   }
 

@@ -69,13 +69,15 @@ export function toAxisAngle(M) {
 // ------------------------------------------------------------------ the skeleton
 /** Parents, children, hang points and joint incidences of the rig's bones (BE, P). */
 export class Bones {
-  constructor(viewer) {
-    const { BE } = viewer.arrays;
-    const s = viewer.summary;
-    this.v = viewer;
-    this.b = viewer.b;
-    this.dim = viewer.dim;
-    this.parents = s.parents.slice();
+  /** store: the page's store (store.js), its rig loaded; world() reads its pose. */
+  constructor(store) {
+    const rig = store.rig, { BE } = rig;
+    const s = { connected: rig.connected, hang: rig.hang };
+    this.store = store;
+    this.rig = rig;
+    this.b = rig.b;
+    this.dim = rig.dim;
+    this.parents = rig.parents.slice();
     this.start = [];
     this.end = [];
     for (let i = 0; i < this.b; i++) { this.start.push(BE[2 * i]); this.end.push(BE[2 * i + 1]); }
@@ -93,9 +95,7 @@ export class Bones {
       this.order.push(i);
       todo.push(...this.children[i]);
     }
-    const names = viewer.summary.names || [];
-    this.names = [];
-    for (let i = 0; i < this.b; i++) this.names.push(names[i] != null ? String(names[i]) : String(i));
+    this.names = rig.names.slice();
   }
 
   /** Bone i and everything below it. */
@@ -131,7 +131,7 @@ export class Bones {
   // ---------------------------------------------------------------- world pose
   /** The current pose's arrays in 3D (2D: rotations about z), float64 copies. */
   world() {
-    const P = this.v.poseArrays, d = this.dim;
+    const P = this.store.pose, d = this.dim;
     const R = [], A = [], S = P.stretch.slice(), T = [];
     for (let i = 0; i < this.b; i++) {
       const M = P.rotations[i];
@@ -144,12 +144,12 @@ export class Bones {
   }
 
   restVec(i) {   // b_i - a_i
-    const r = this.v.rest;
+    const r = this.rig.rest;
     return sub([r.b[3 * i], r.b[3 * i + 1], r.b[3 * i + 2]], [r.a[3 * i], r.a[3 * i + 1], r.a[3 * i + 2]]);
   }
 
   restStart(i) {
-    const r = this.v.rest;
+    const r = this.rig.rest;
     return [r.a[3 * i], r.a[3 * i + 1], r.a[3 * i + 2]];
   }
 
@@ -159,7 +159,7 @@ export class Bones {
   /** Posed joint positions (j x 3) of a world pose. */
   joints(w) {
     const J = [];
-    const C = this.v.arrays.C, d = this.dim, nj = C.length / d;
+    const C = this.rig.C, d = this.dim, nj = C.length / d;
     for (let k = 0; k < nj; k++) J.push([C[d * k], C[d * k + 1], d === 3 ? C[d * k + 2] : 0]);
     for (const i of this.order) { J[this.start[i]] = w.A[i].slice(); J[this.end[i]] = this.endOf(w, i); }
     return J;
@@ -251,7 +251,8 @@ export class Bones {
   fkObject(w) {
     const d = this.dim;
     let big = 1;
-    for (let k = 0; k < this.v.restC.length; k++) big = Math.max(big, Math.abs(this.v.restC[k]));
+    const restC = this.rig.restC;
+    for (let k = 0; k < restC.length; k++) big = Math.max(big, Math.abs(restC[k]));
     for (const a of w.A) big = Math.max(big, Math.abs(a[0]), Math.abs(a[1]), Math.abs(a[2]));
     const tol = 1e-9 * big;       // as stbs.io.pose_to_dict: an offset below it is none
     const rotate = {}, stretch = {}, twist = {}, moved = [];
@@ -321,4 +322,32 @@ export function fabrik(P, L, target, iterations = 64) {
     if (norm(sub(Q[m], target)) < tol) break;
   }
   return Q;
+}
+
+/**
+ * X-mirror posing: the world pose w edited from w0, with each edited bone's edit also
+ * applied to its mirror bone (mirror[k], mirror.js's mirrorBones) where that bone was
+ * not edited itself: the rotation's change reflected across the x = centre plane
+ * (S D S, S = diag(-1, 1, 1)), the start's move reflected, the stretch scaled alike and
+ * the twists' change negated (a reflection turns the other way). Returns w.
+ */
+export function mirrorEdit(w0, w, mirror) {
+  const b = w.R.length, changed = new Uint8Array(b);
+  const same = (x, y) => x.length === y.length && x.every((v, k) => (Array.isArray(v) ? same(v, y[k]) : v === y[k]));
+  for (let k = 0; k < b; k++) {
+    changed[k] = same(w0.R[k], w.R[k]) && same(w0.A[k], w.A[k]) && w0.S[k] === w.S[k] &&
+      same(w0.T[k], w.T[k]) ? 0 : 1;
+  }
+  const flip = (M) => M.map((row, r) => row.map((x, c) => ((r === 0) !== (c === 0) ? -x : x)));
+  for (let k = 0; k < b; k++) {
+    const m = mirror[k];
+    if (!changed[k] || m === k || changed[m]) continue;
+    const D = matmul(w.R[k], transpose(w0.R[k]));
+    w.R[m] = matmul(flip(D), w0.R[m]);
+    const t = sub(w.A[k], w0.A[k]);
+    w.A[m] = add(w0.A[m], [-t[0], t[1], t[2]]);
+    w.S[m] = w0.S[k] !== 0 ? w0.S[m] * (w.S[k] / w0.S[k]) : w.S[k];
+    w.T[m] = [w0.T[m][0] - (w.T[k][0] - w0.T[k][0]), w0.T[m][1] - (w.T[k][1] - w0.T[k][1])];
+  }
+  return w;
 }

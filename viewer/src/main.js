@@ -6,7 +6,11 @@ import * as THREE from "three";
 import { OrbitControls } from "three/examples/jsm/controls/OrbitControls.js";
 import { SkinFeedback } from "./feedback.js";
 import { timeFrames } from "./timing.js";
-import { hangSegments, packBones, posedSegments, restFrames } from "./pose.js";
+import { LineSegments2 } from "three/examples/jsm/lines/LineSegments2.js";
+import { LineSegmentsGeometry } from "three/examples/jsm/lines/LineSegmentsGeometry.js";
+import { LineMaterial } from "three/examples/jsm/lines/LineMaterial.js";
+import { hangSegments, packBones, posedSegments, PoseLink, restFrames } from "./pose.js";
+import { Bones } from "./ik.js";
 import { PoseEditor } from "./edit.js";
 import { WeightEditor } from "./paint.js";
 import { Compare } from "./compare.js";
@@ -60,21 +64,29 @@ function status(text, isError = false) {
   if (el) { el.textContent = text; el.classList.toggle("error", isError); }
 }
 
+const SELECTED = 0xffa040;      // the selected bone's colour
+const SELECTED_PX = 4;          // and its width, CSS pixels
+const JOINT_RING_PX = 11;       // the ring round its start joint, radius in CSS pixels
+
 class Viewer {
   constructor() {
     // the context every module gets (docs/viewer.md): the one store, events, history,
-    // keyboard shortcuts and the drawing services (view)
+    // keyboard shortcuts and the drawing services (view), and the pose on the server
     this.events = new Events();
     this.store = new Store(this.events);
     this.history = new History(this.events);
     this.keys = new Keys(window);
+    this.poses = new PoseLink(this.store, apiJSON, (err) => status(`stbs view: ${err.message}`, true));
     this.view = makeView(this);
     this.ctx = Object.freeze({ store: this.store, events: this.events, history: this.history,
-                               keys: this.keys, view: this.view });
+                               keys: this.keys, view: this.view, poses: this.poses });
   }
 
   /** The pose object that gives the pose shown (the store's). */
   get lastSent() { return this.store.poseObject; }
+
+  /** The pose's per-bone arrays as the store holds them. */
+  get poseArrays() { return this.store.pose; }
 
   async load() {
     const info = await apiJSON("/api/rig");
@@ -92,14 +104,14 @@ class Viewer {
     // the rest joints in float64 (the summary's) for the pose arithmetic; C.bin is float32
     const C64 = info.rest_joints ? Float64Array.from(info.rest_joints.flat()) : arrays.C;
     this.rest = restFrames(C64, arrays.BE, this.dim);
-    this.restC = C64;
     // offset children (DESIGN §2): [child, parent, t_c], drawn as links to where they hang
-    const parents = info.parents || [], hang = info.hang || [], connected = info.connected || [];
+    const parents = (info.parents || []).map(Number), hang = info.hang || [];
+    const connected = info.connected || [];
     this.links = [];
     parents.forEach((p, i) => { if (p >= 0 && connected[i] === false) this.links.push([i, p, hang[i] ?? 0]); });
     this.store.setRig({ dim: this.dim, n: this.n, b: this.b, V: arrays.V, F: arrays.F || null,
-                        C: arrays.C, BE: arrays.BE, restC: C64, rest: this.rest,
-                        parents: parents.map(Number), connected, hang, links: this.links,
+                        C: arrays.C, BE: arrays.BE, restC: C64, rest: this.rest, parents,
+                        connected: info.connected || null, hang: info.hang || null, links: this.links,
                         names: Array.from({ length: this.b }, (_, i) => (info.names && info.names[i] != null
                           ? String(info.names[i]) : String(i))),
                         summary: info });
@@ -107,20 +119,31 @@ class Viewer {
     this.boneData = new Float32Array(4 * TEXELS_PER_BONE * this.b);
     this.methodIndex = Math.max(0, METHODS.indexOf(info.method));
     this.buildScene();
-    this.showArrays(await apiJSON("/api/pose/bones"), await this.getPose());
+    this.events.on("pose", ({ arrays: a }) => this.upload(a));
+    this.events.on("select", () => { this.showSelected(); this.render(); });
+    await this.poses.fetch(await this.poses.get());
     this.compile();
     this.buildUI();
-    this.editor = new PoseEditor(this);
+    const ctx = this.ctx, bones = new Bones(this.store);
+    this.compare = new Compare(ctx);
+    this.gizmo = new Gizmo(ctx, bones);
+    this.editor = new PoseEditor(ctx, { bones, gizmo: this.gizmo, painting: () => this.painting() });
     this.weights = new WeightEditor(this, api);
-    this.compare = new Compare(this);
-    this.gizmo = new Gizmo(this, this.editor.bones);
-    this.poseFiles = new PoseFiles(this, apiJSON, status);
-    this.timeline = new Timeline(this, api, status);
+    this.poseFiles = new PoseFiles(ctx, apiJSON, status);
+    this.timeline = new Timeline(ctx, api, status);
     this.registerKeys();
+    this.store.select(0);
     if (info.clip) {        // started with a clip (stbs view RIG --motion FILE): on the timeline
       await this.timeline.open(await apiJSON("/api/clip"));
     }
     this.frame();
+  }
+
+  /** Whether painting has the pointer (the store's paint mode, or the weights panel's). */
+  painting() {
+    const w = this.weights;
+    return this.store.mode === "paint" ||
+      !!(w && w.settings && w.settings.mode && w.settings.mode !== "off");
   }
 
   buildScene() {
@@ -128,7 +151,8 @@ class Viewer {
     const canvas = document.getElementById("view");
     const renderer = new THREE.WebGLRenderer({ canvas, antialias: true, preserveDrawingBuffer: true });
     renderer.setPixelRatio(window.devicePixelRatio || 1);
-    renderer.setSize(window.innerWidth, window.innerHeight, false);
+    const [cw, ch] = this.canvasSize();
+    renderer.setSize(cw, ch, false);
     renderer.setClearColor(0x20232a, 1);
     this.renderer = renderer;
     this.gl = renderer.getContext();
@@ -209,13 +233,29 @@ class Viewer {
     this.linkLines.renderOrder = 1;
     this.linkLines.frustumCulled = false;
     scene.add(this.linkLines);
+    // the selected bone: drawn wider in its own colour, a ring round its start joint
+    this.selectedLine = new LineSegments2(new LineSegmentsGeometry(), new LineMaterial(
+      { color: SELECTED, linewidth: SELECTED_PX, depthTest: false, transparent: true }));
+    this.selectedLine.renderOrder = 2;
+    this.selectedLine.frustumCulled = false;
+    this.selectedLine.visible = false;
+    const ring = new Float32Array(3 * 48);
+    for (let k = 0; k < 48; k++) { ring[3 * k] = Math.cos(k * Math.PI / 24); ring[3 * k + 1] = Math.sin(k * Math.PI / 24); }
+    const ringGeom = new THREE.BufferGeometry();
+    ringGeom.setAttribute("position", new THREE.BufferAttribute(ring, 3));
+    this.jointRing = new THREE.LineLoop(ringGeom, new THREE.LineBasicMaterial(
+      { color: SELECTED, depthTest: false, transparent: true }));
+    this.jointRing.renderOrder = 2;
+    this.jointRing.frustumCulled = false;
+    this.jointRing.visible = false;
+    scene.add(this.selectedLine, this.jointRing);
     this.scene = scene;
 
     const center = this.bbox.getCenter(new THREE.Vector3());
     const size = this.bbox.getSize(new THREE.Vector3());
     const diag = Math.max(size.length(), 1e-6);
     this.diag = diag;
-    const aspect = window.innerWidth / Math.max(window.innerHeight, 1);
+    const aspect = cw / Math.max(ch, 1);
     if (dim === 2) {
       const h = 0.75 * diag;
       this.camera = new THREE.OrthographicCamera(-h * aspect, h * aspect, h, -h, -10 * diag, 10 * diag);
@@ -228,14 +268,29 @@ class Viewer {
     this.camera.lookAt(center);
     const controls = new OrbitControls(this.camera, canvas);
     controls.target.copy(center);
-    if (dim === 2) { controls.enableRotate = false; controls.screenSpacePanning = true; }
+    // wheel: zoom; right-drag: pan; left-drag on nothing, middle-drag or Alt+drag: orbit
+    // (painting and joint drags take a plain left drag, never Alt or the middle button)
+    controls.mouseButtons = { LEFT: THREE.MOUSE.ROTATE, MIDDLE: THREE.MOUSE.ROTATE, RIGHT: THREE.MOUSE.PAN };
+    if (dim === 2) {
+      controls.enableRotate = false;
+      controls.screenSpacePanning = true;
+      controls.mouseButtons = { LEFT: THREE.MOUSE.PAN, MIDDLE: THREE.MOUSE.PAN, RIGHT: THREE.MOUSE.PAN };
+    }
     controls.update();
     controls.addEventListener("change", () => this.render());
     this.controls = controls;
     window.addEventListener("resize", () => this.resize());
+    if (typeof ResizeObserver !== "undefined") new ResizeObserver(() => this.resize()).observe(canvas);
 
     this.feedback = new SkinFeedback(this.gl, { position, normal, index, weight, end }, this.b);
     renderer.resetState();
+  }
+
+  /** The canvas's size on the page (the area the panels leave), CSS pixels. */
+  canvasSize() {
+    const c = document.getElementById("view");
+    const r = c.getBoundingClientRect();
+    return [Math.max(1, Math.round(r.width)), Math.max(1, Math.round(r.height))];
   }
 
   /** The 2D picture's texture (arrays UV and texture, row 0 at the top), or null. */
@@ -254,8 +309,10 @@ class Viewer {
   }
 
   resize() {
-    const w = window.innerWidth, h = Math.max(window.innerHeight, 1);
-    this.renderer.setSize(w, h, false);
+    if (!this.renderer) return;
+    const [w, h] = this.canvasSize();
+    const size = this.renderer.getSize(new THREE.Vector2());
+    if (size.x !== w || size.y !== h) this.renderer.setSize(w, h, false);
     const view = this.viewRect(), aspect = Math.max(view.width, 1) / Math.max(view.height, 1);
     if (this.camera.isOrthographicCamera) {
       const half = 0.5 * (this.camera.top - this.camera.bottom);
@@ -284,17 +341,9 @@ class Viewer {
     }
   }
 
-  async fetchPose(object = undefined) {
-    this.showArrays(await apiJSON("/api/pose/bones"), object);
-  }
-
-  /** The pose's per-bone arrays as the store holds them. */
-  get poseArrays() { return this.store.pose; }
-
-  /** Upload a pose's per-bone arrays {rotations, origins, stretch, twist} (not drawn yet);
-   * `object`: the pose object that gives them, where known. */
-  showArrays(arrays, object = undefined) {
-    this.store.setPose(arrays, object);
+  /** A pose's per-bone arrays (the store's "pose" event) into the bone texture and the
+   * skeleton's lines; drawn. */
+  upload(arrays) {
     packBones(this.rest, arrays, this.dim, this.boneData);
     this.boneTexture.needsUpdate = true;
     const segs = this.skeletonLines.geometry.attributes.position;
@@ -305,10 +354,37 @@ class Viewer {
       hangSegments(this.links, segs.array, links.array);
       links.needsUpdate = true;
     }
+    this.showSelected();
+    this.render();
+  }
+
+  /** The selected bone's wide line and joint ring where the pose has it. */
+  showSelected() {
+    const i = this.store.selection.bone;
+    const on = i !== null && !!this.skeletonLines;
+    if (this.selectedLine) { this.selectedLine.visible = on; this.jointRing.visible = on; }
+    if (!on) return;
+    const s = this.skeletonLines.geometry.attributes.position.array;
+    this.selectedLine.geometry.setPositions(Array.from(s.subarray(6 * i, 6 * i + 6)));
+    this.jointRing.position.set(s[6 * i], s[6 * i + 1], s[6 * i + 2]);
+  }
+
+  /** World units per CSS pixel at point p (the left viewport). */
+  perPixel(p) {
+    const cam = this.camera, h = Math.max(this.viewRect().height, 1);
+    if (cam.isOrthographicCamera) return (cam.top - cam.bottom) / cam.zoom / h;
+    return 2 * p.distanceTo(cam.position) * Math.tan(THREE.MathUtils.degToRad(0.5 * cam.fov)) / h;
   }
 
   render() {
+    if (!this.renderer) return;
     if (this.gizmo) this.gizmo.update();
+    if (this.jointRing && this.jointRing.visible) {
+      this.jointRing.quaternion.copy(this.camera.quaternion);
+      this.jointRing.scale.setScalar(JOINT_RING_PX * this.perPixel(this.jointRing.position));
+      const rect = this.viewRect();
+      this.selectedLine.material.resolution.set(rect.width, rect.height);
+    }
     if (this.compare && this.compare.active) this.compare.render();
     else this.renderer.render(this.scene, this.camera);
   }
@@ -330,6 +406,13 @@ class Viewer {
     const k = this.keys, report = (what) => (err) => status(`${what}: ${err.message}`, true);
     k.register({ key: "Ctrl+Z", label: "undo", run: () => this.history.undo().catch(report("undo")) });
     k.register({ key: "Ctrl+Shift+Z", label: "redo", run: () => this.history.redo().catch(report("redo")) });
+    k.register({ key: "Space", label: "play or pause the clip",
+                 run: () => (this.timeline.playing ? this.timeline.pause() : this.timeline.play()).catch(report("play")) });
+    k.register({ key: "F", label: "frame the view on the character", run: () => this.frame() });
+    k.register({ key: "Tab", label: "switch between posing and painting",
+                 run: () => this.store.setMode(this.store.mode === "pose" ? "paint" : "pose") });
+    k.register({ key: "X", label: "mirror edits across the middle (X) on or off",
+                 run: () => this.store.setMirror(!this.store.mirror) });
   }
 
   buildUI() {
@@ -342,6 +425,12 @@ class Viewer {
     }
     sel.value = METHODS[this.methodIndex];
     sel.addEventListener("change", () => this.setMethod(sel.value));
+    const mirror = document.getElementById("mirror");
+    if (mirror) {
+      mirror.addEventListener("change", () => this.store.setMirror(mirror.checked));
+      this.events.on("mirror", ({ on }) => { mirror.checked = on; });
+    }
+    document.getElementById("help-button")?.addEventListener("click", () => this.keys.toggleHelp());
     const s = this.summary;
     status(`${s.name}: ${s.vertices} vertices, ${s.bones} bones, ${s.dim}D`);
   }
@@ -363,51 +452,20 @@ class Viewer {
     return METHODS[i];
   }
 
-  /** POST a pose, upload its arrays, draw; the pose object is kept for undo. */
-  async postPose(pose) {
-    const reply = await apiJSON("/api/pose", {
-      method: "POST", headers: { "Content-Type": "application/json" }, body: JSON.stringify(pose) });
-    await this.fetchPose(pose);
-    this.render();
-    return reply.pose;
-  }
-
   /** The scripting API's setPose: after any edit in flight, then frame the posed mesh. */
   async setPose(pose) {
     await this.settled();
-    const back = await this.postPose(pose);
+    const back = await this.poses.post(pose);
     this.frame();
     return back;
-  }
-
-  /** Interactive edits: the latest pose wins; resolves when all sent poses are shown. */
-  send(pose) {
-    this.pending = pose;
-    if (!this.sending) {
-      this.sending = (async () => {
-        try {
-          while (this.pending) {
-            const p = this.pending;
-            this.pending = null;
-            try { await this.postPose(p); } catch (err) { status(`stbs view: ${err.message}`, true); }
-          }
-        } finally { this.sending = null; }
-      })();
-    }
-    return this.sending;
-  }
-
-  /** Resolves once no sent pose is in flight (an edit's; undo and redo wait with settled()). */
-  async idle() {
-    while (this.sending) await this.sending.catch(() => {});
   }
 
   /** Resolves once no edit, undo or redo is in flight. */
   async settled() {
     do {
       await this.history.idle();
-      await this.idle();
-    } while (this.sending);
+      await this.poses.idle();
+    } while (this.poses.sending);
   }
 
   /** Posed joint positions (j x 3; rest position for a joint of no bone). */
@@ -428,6 +486,9 @@ class Viewer {
     }
     return out;
   }
+
+  /** The posed bones' segments, b x 6 (start, end; 3D). */
+  segments() { return this.skeletonLines.geometry.attributes.position.array; }
 
   /** A world point's position on the page, CSS pixels [x, y]. */
   toScreen(x, y, z, rect = this.viewRect()) {
@@ -452,6 +513,7 @@ class Viewer {
 
   /** Frame the posed mesh (its skinned positions and the posed joints) in the view. */
   frame(more = []) {    // more: further point arrays (x, y, z, ...) to keep in view
+    this.resize();
     const U = this.skinned()[0], J = this.posedJoints();
     const box = new THREE.Box3(), p = new THREE.Vector3();
     for (const A of [U, J, ...more]) for (let i = 0; i < A.length; i += 3) box.expandByPoint(p.set(A[i], A[i + 1], A[i + 2]));
@@ -485,7 +547,7 @@ class Viewer {
   }
 
   async getPose() {
-    return apiJSON("/api/pose");
+    return this.poses.get();
   }
 
   skinned() {
@@ -507,15 +569,28 @@ class Viewer {
 function makeView(v) {
   const view = {};
   for (const k of ["renderer", "scene", "camera", "controls", "mesh", "material", "feedback",
-                   "diag", "boneData"]) {
+                   "diag", "boneData", "methodIndex"]) {
     Object.defineProperty(view, k, { get: () => v[k], enumerable: true });
   }
   for (const f of ["render", "viewRect", "viewRectAt", "skinned", "toScreen", "posedJoints",
-                   "frame", "resize"]) {
+                   "segments", "frame", "resize", "perPixel"]) {
     view[f] = (...args) => v[f](...args);
   }
   /** Turn the camera's orbit, pan and zoom off (during a drag) or back on. */
   view.setOrbit = (on) => { v.controls.enabled = !!on; };
+  /** Set a uniform of the mesh's material (uMethod, uColorMode, ...). */
+  view.setUniform = (name, value) => {
+    if (!(name in v.material.uniforms)) throw new Error(`view.setUniform: no uniform ${JSON.stringify(name)}`);
+    v.material.uniforms[name].value = value;
+  };
+  /** Put the camera and the orbit target back as saved by saveCamera(). */
+  view.saveCamera = () => ({ camera: v.camera.clone(), target: v.controls.target.clone() });
+  view.restoreCamera = (saved) => {
+    v.camera.copy(saved.camera);
+    v.camera.updateProjectionMatrix();
+    v.controls.target.copy(saved.target);
+    v.controls.update();
+  };
   return Object.freeze(view);
 }
 
@@ -560,6 +635,9 @@ window.stbsViewer = Object.freeze({
   store: () => ({ selection: Object.assign({}, viewer.store.selection), mode: viewer.store.mode,
                   mirror: viewer.store.mirror }),
   shortcuts: () => viewer.keys.shortcuts(),
+  selectBone: whenReady((bone) => viewer.editor.select(bone)),
+  setMirror: whenReady((on) => viewer.store.setMirror(on)),
+  setMode: whenReady((mode) => viewer.store.setMode(mode)),
   // posing tools: drag modes, the rotation gizmo, side by side, pose files
   setDragMode: whenReady((mode) => viewer.editor.setDragMode(mode)),
   dragMode: () => (viewer.editor ? viewer.editor.mode : "stretch"),

@@ -137,3 +137,57 @@ export function hangSegments(links, segs, out) {
   });
   return out;
 }
+
+/**
+ * The pose on the server: sends pose objects (POST /api/pose) and puts what the server
+ * makes of them into the store (store.setPose, per-bone arrays and the pose object).
+ * Interactive edits send with send(): the latest pose wins, one request at a time.
+ * `apiJSON(path, options)` is the page's API client.
+ */
+export class PoseLink {
+  constructor(store, apiJSON, report = () => {}) {
+    this.store = store;
+    this.apiJSON = apiJSON;
+    this.report = report;
+    this.pending = null;
+    this.sending = null;
+  }
+
+  /** GET /api/pose: the current pose object, as the server keeps it. */
+  get() { return this.apiJSON("/api/pose"); }
+
+  /** Fetch the current pose's arrays into the store; `object`: the pose object that gave them. */
+  async fetch(object = undefined) {
+    this.store.setPose(await this.apiJSON("/api/pose/bones"), object);
+  }
+
+  /** POST a pose object and show it; resolves to the server's pose. */
+  async post(pose) {
+    const reply = await this.apiJSON("/api/pose", {
+      method: "POST", headers: { "Content-Type": "application/json" }, body: JSON.stringify(pose) });
+    await this.fetch(pose);
+    return reply.pose;
+  }
+
+  /** Interactive edits: the latest pose wins; resolves when all sent poses are shown. */
+  send(pose) {
+    this.pending = pose;
+    if (!this.sending) {
+      this.sending = (async () => {
+        try {
+          while (this.pending) {
+            const p = this.pending;
+            this.pending = null;
+            try { await this.post(p); } catch (err) { this.report(err); }
+          }
+        } finally { this.sending = null; }
+      })();
+    }
+    return this.sending;
+  }
+
+  /** Resolves once no sent pose is in flight. */
+  async idle() {
+    while (this.sending) await this.sending.catch(() => {});
+  }
+}

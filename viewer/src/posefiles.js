@@ -2,13 +2,18 @@
 // into the rig's pose folder), download it as JSON, load a pose file from this machine.
 
 export class PoseFiles {
-  /** apiJSON(path, options) and status(text, isError) are the page's own. */
-  constructor(viewer, apiJSON, status) {
-    this.v = viewer;
+  /** ctx: {store, history, poses, ...}; apiJSON(path, options) and status(text,
+   * isError) are the page's own. */
+  constructor(ctx, apiJSON, status) {
+    this.store = ctx.store;
+    this.history = ctx.history;
+    this.poses = ctx.poses;
+    this.view = ctx.view;
     this.apiJSON = apiJSON;
     this.status = status;
     const save = document.getElementById("save-pose");
-    const saving = !!(viewer.summary.save && viewer.summary.save.pose);
+    const summary = this.store.rig.summary;
+    const saving = !!(summary.save && summary.save.pose);
     if (save) {
       save.disabled = !saving;
       save.title = saving ? "save the pose into the rig's folder"
@@ -33,9 +38,14 @@ export class PoseFiles {
   }
 
   /** Save the current pose as `name` (null: the server's next free name); resolves to {path, name}. */
+  async settled() {
+    await this.history.idle();
+    await this.poses.idle();
+  }
+
   async save(name = null, overwrite = false) {
-    await this.v.settled();
-    const body = { pose: this.v.lastSent };
+    await this.settled();
+    const body = { pose: this.store.poseObject };
     if (name !== null && name !== undefined) body.name = name;
     if (overwrite) body.overwrite = true;
     try {
@@ -51,8 +61,8 @@ export class PoseFiles {
 
   /** The current pose as pose-file text (the server's canonical form, bones by name). */
   async text() {
-    await this.v.settled();
-    return JSON.stringify(await this.v.getPose(), null, 1) + "\n";
+    await this.settled();
+    return JSON.stringify(await this.poses.get(), null, 1) + "\n";
   }
 
   async download() {
@@ -60,7 +70,7 @@ export class PoseFiles {
     const url = URL.createObjectURL(blob);
     const a = document.createElement("a");
     a.href = url;
-    a.download = this.name() || `${this.v.summary.name || "rig"}-pose.json`;
+    a.download = this.name() || `${this.store.rig.summary.name || "rig"}-pose.json`;
     document.body.appendChild(a);
     a.click();
     a.remove();
@@ -77,12 +87,13 @@ export class PoseFiles {
       this.status(`load pose: ${e.message}`, true);
       throw e;
     }
-    await this.v.settled();
-    const before = this.v.lastSent, v = this.v;
+    await this.settled();
+    const before = this.store.poseObject, poses = this.poses;
     try {
-      const back = await v.setPose(obj);
-      const after = v.lastSent;
-      v.history.push({ name: "load pose", execute: () => v.send(after), undo: () => v.send(before) });
+      const back = await poses.post(obj);
+      this.view.frame();
+      const after = this.store.poseObject;
+      this.history.push({ name: "load pose", execute: () => poses.send(after), undo: () => poses.send(before) });
       this.status(`loaded the pose from ${label}`);
       return back;
     } catch (err) {

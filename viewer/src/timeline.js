@@ -28,10 +28,13 @@ function finite(name, x) {
 }
 
 export class Timeline {
-  /** api(path, options) (a fetch that throws with the server's message) and
-   * status(text, isError) are the page's own. */
-  constructor(viewer, api, status) {
-    this.v = viewer;
+  /** ctx: {store, history, view, poses, ...}; api(path, options) (a fetch that throws
+   * with the server's message) and status(text, isError) are the page's own. */
+  constructor(ctx, api, status) {
+    this.store = ctx.store;
+    this.history = ctx.history;
+    this.view = ctx.view;
+    this.poses = ctx.poses;
     this.api = api;
     this.status = status;
     this.fps = DEFAULT_FPS;
@@ -99,14 +102,49 @@ export class Timeline {
     }
   }
 
+  // ------------------------------------------------------------------ undo and redo
+  /** The clip's state and the pose: what a key edit's undo gives back. */
+  snapshot() {
+    return copy({ list: this.list, fps: this.fps, interpolation: this.interpolation,
+                  source: this.source, held: this.held, time: this.time, pose: this.store.poseObject });
+  }
+
+  async restore(s) {
+    this.stop();
+    const c = copy(s);
+    this.list = c.list;
+    this.fps = c.fps;
+    this.interpolation = c.interpolation;
+    this.source = c.source;
+    this.changed();
+    this.held = c.held;
+    this.time = c.time;
+    if (JSON.stringify(this.store.poseObject) !== JSON.stringify(c.pose)) await this.poses.send(c.pose);
+    this.updateBar();
+  }
+
+  /** Run a key edit f() and record it on the History (one undo step, pose included). */
+  async edit(name, f) {
+    await this.poses.idle();
+    const before = this.snapshot();
+    const out = await f();
+    const after = this.snapshot();
+    if (JSON.stringify(after) === JSON.stringify(before)) return out;     // nothing changed
+    this.history.push({ name, execute: () => this.restore(after), undo: () => this.restore(before) });
+    return out;
+  }
+
   /** Add (or replace) the key at `time` with `pose` (default: the current pose, GET /api/pose). */
-  async addKey(time = this.time, pose = null) {
+  addKey(time = this.time, pose = null) {
     finite("time", time);
-    await this.v.idle();
-    if (pose === null || pose === undefined) pose = await this.apiJSON("/api/pose");
-    if (typeof pose !== "object" || Array.isArray(pose)) {
+    if (pose !== null && pose !== undefined && (typeof pose !== "object" || Array.isArray(pose))) {
       throw new Error(`pose must be a pose object (either form of a pose file), got ${JSON.stringify(pose)}`);
     }
+    return this.edit("add key", () => this.addKeyNow(time, pose));
+  }
+
+  async addKeyNow(time, pose) {
+    if (pose === null || pose === undefined) pose = await this.apiJSON("/api/pose");
     const key = { time, pose: copy(pose) };
     const at = this.list.findIndex((k) => k.time === time);
     if (at >= 0) this.list[at] = key;
@@ -118,6 +156,11 @@ export class Timeline {
 
   /** Delete the key at `time` (default: the key nearest the current time); the keys left. */
   deleteKey(time = null) {
+    if (time !== null && time !== undefined) finite("time", time);
+    return this.edit("delete key", () => this.deleteKeyNow(time));
+  }
+
+  deleteKeyNow(time) {
     if (!this.list.length) return this.keys();
     let at;
     if (time === null || time === undefined) {
@@ -137,7 +180,9 @@ export class Timeline {
     return this.keys();
   }
 
-  clearKeys() {
+  clearKeys() { return this.edit("clear keys", () => this.clearKeysNow()); }
+
+  clearKeysNow() {
     this.stop();
     this.list = [];
     this.time = 0;
@@ -151,6 +196,10 @@ export class Timeline {
     if (!obj || typeof obj !== "object" || Array.isArray(obj)) {
       throw new Error(`clip must be a clip object {fps, interpolation, keys}, got ${JSON.stringify(obj)}`);
     }
+    return this.edit("set clip", () => this.setClipNow(obj));
+  }
+
+  async setClipNow(obj) {
     const reply = await this.apiJSON("/api/clip", this.post(obj));    // the server's read_clip
     this.stop();
     this.fps = reply.fps;
@@ -185,20 +234,24 @@ export class Timeline {
     if (typeof fps !== "number" || !Number.isFinite(fps) || fps <= 0) {
       throw new Error(`fps must be a number > 0, got ${JSON.stringify(fps)}`);
     }
-    this.fps = fps;
-    this.changed(false);
-    return fps;
+    return this.edit("set fps", () => {
+      this.fps = fps;
+      this.changed(false);
+      return fps;
+    });
   }
 
   setInterpolation(name) {
     if (!INTERPOLATIONS.includes(name)) {
       throw new Error(`interpolation must be one of ${INTERPOLATIONS.join(", ")}, got ${JSON.stringify(name)}`);
     }
-    if (name !== this.interpolation) {
-      this.interpolation = name;
-      this.changed();
-    }
-    return name;
+    return this.edit("set interpolation", () => {
+      if (name !== this.interpolation) {
+        this.interpolation = name;
+        this.changed();
+      }
+      return name;
+    });
   }
 
   post(body) {
@@ -227,9 +280,9 @@ export class Timeline {
       const r = await this.withClip((id) => this.api(`/api/clip/${id}/frames?t=${part.map(String).join(",")}`));
       const [n, b, m] = r.headers.get("X-Stbs-Shape").split(",").map(Number);
       const rows = new Float64Array(await r.arrayBuffer());
-      const d = this.v.dim;
-      if (n !== part.length || b !== this.v.b || m !== d * d + d + 3) {
-        throw new Error(`frames: expected ${part.length} x ${this.v.b} x ${d * d + d + 3} values, got ${n} x ${b} x ${m}`);
+      const d = this.store.rig.dim, nb = this.store.rig.b;
+      if (n !== part.length || b !== nb || m !== d * d + d + 3) {
+        throw new Error(`frames: expected ${part.length} x ${nb} x ${d * d + d + 3} values, got ${n} x ${b} x ${m}`);
       }
       for (let f = 0; f < n; f++) {
         const rotations = [], origins = [], stretch = [], twist = [];
@@ -249,10 +302,9 @@ export class Timeline {
   }
 
   // ------------------------------------------------------------------ showing a time
-  /** Upload one frame's bone arrays (as fetchPose does) and draw. */
+  /** Show one frame's bone arrays (the store's pose; the pose object stays). */
   draw(frame) {
-    this.v.showArrays(frame);
-    this.v.render();
+    this.store.setPose(frame);
   }
 
   /**
@@ -262,8 +314,7 @@ export class Timeline {
   show(t) {
     const run = async () => {
       const reply = await this.withClip((id) => this.apiJSON(`/api/clip/${id}/pose`, this.post({ time: t })));
-      await this.v.fetchPose(reply.pose);
-      this.v.render();
+      await this.poses.fetch(reply.pose);
       this.time = t;
       this.updateBar();
       return reply;
@@ -279,7 +330,7 @@ export class Timeline {
     finite("t", t);
     this.needKeys("seek");
     this.stop();
-    await this.v.idle();
+    await this.poses.idle();
     await this.show(t);
     return { time: t };
   }
@@ -292,7 +343,7 @@ export class Timeline {
   async play() {
     this.needKeys("play");
     if (this.playing) return this.state();
-    await this.v.idle();
+    await this.poses.idle();
     const grid = this.grid(), n = grid.count, fps = this.fps;
     const batch = Math.min(MAX_BATCH, Math.max(16, Math.ceil(fps)));
     let k0 = Math.round((this.time - grid.start) * fps);
@@ -320,7 +371,7 @@ export class Timeline {
     let shown = -1;
     const tick = () => {
       if (!this.playing) return;
-      if (this.version !== version || this.v.sending) { this.stop(); return; }   // edited: stop
+      if (this.version !== version || this.poses.sending) { this.stop(); return; }   // edited: stop
       let k = k0 + Math.floor((performance.now() - wall0) * fps / 1000);
       if (k >= n) {
         if (this.loop && n > 1) k %= n;
@@ -407,26 +458,26 @@ export class Timeline {
     if (format !== "gif") throw new Error(`format must be "gif", got ${JSON.stringify(format)}`);
     this.needKeys("export");
     this.stop();
-    await this.v.idle();
+    await this.poses.idle();
     const grid = this.grid();
     if (grid.count > MAX_EXPORT_FRAMES) {
       throw new Error(`export: ${grid.count} frames; at most ${MAX_EXPORT_FRAMES} (lower the fps)`);
     }
     const poses = await this.frames(Array.from({ length: grid.count }, (_, k) => grid.at(k)));
-    const src = this.v.renderer.domElement;
+    const src = this.view.renderer.domElement;
     const w = Math.max(1, Math.min(Math.round(width), src.width));
     const h = Math.max(1, Math.round(src.height * w / src.width));
     const out = document.createElement("canvas");
     out.width = w; out.height = h;
     const ctx = out.getContext("2d");
     const frames = [];
-    const v = this.v, saved = v.camera.clone(), target = v.controls.target.clone();
+    const v = this.view, saved = v.saveCamera();
     try {
       if (frame) {                  // frame the whole clip: every frame's mesh and joints
         const points = [];
         for (const f of poses) {
           this.draw(f);
-          points.push(v.skinned()[0].slice(), v.skeletonLines.geometry.attributes.position.array.slice());
+          points.push(v.skinned()[0].slice(), v.segments().slice());
         }
         v.frame(points);
       }
@@ -436,14 +487,8 @@ export class Timeline {
         frames.push(out.toDataURL("image/png"));
       }
     } finally {
-      if (frame) {                  // give the user's view back
-        v.camera.copy(saved);
-        v.camera.updateProjectionMatrix();
-        v.controls.target.copy(target);
-        v.controls.update();
-      }
-      await v.fetchPose();          // back to the server's current pose
-      v.render();
+      if (frame) v.restoreCamera(saved);     // give the user's view back
+      await this.poses.fetch();     // back to the server's current pose
     }
     const body = { frames, fps: this.fps, format, loop };
     if (name !== null && name !== undefined) body.name = name;
@@ -462,8 +507,7 @@ export class Timeline {
     const report = (what) => (err) => this.status(`${what}: ${err.message}`, true);
     this.el("tl-add")?.addEventListener("click", () => this.addKey().catch(report("add key")));
     this.el("tl-delete")?.addEventListener("click", () => {
-      try { this.deleteKey(); if (this.list.length) this.show(this.time).catch(report("delete key")); }
-      catch (err) { report("delete key")(err); }
+      this.deleteKey().then(() => (this.list.length ? this.show(this.time) : null)).catch(report("delete key"));
     });
     this.el("tl-play")?.addEventListener("click", () =>
       (this.playing ? this.pause() : this.play()).catch(report("play")));
@@ -471,15 +515,17 @@ export class Timeline {
     slider?.addEventListener("input", () => this.scrub(Number(slider.value)));
     const fps = this.el("tl-fps");
     fps?.addEventListener("change", () => {
-      try { this.setFps(Number(fps.value)); } catch (err) { report("fps")(err); fps.value = String(this.fps); }
+      Promise.resolve().then(() => this.setFps(Number(fps.value)))
+        .catch((err) => { report("fps")(err); fps.value = String(this.fps); });
     });
     const interp = this.el("tl-interp");
     interp?.addEventListener("change", () => {
-      try { this.setInterpolation(interp.value); } catch (err) { report("interpolation")(err); }
+      Promise.resolve().then(() => this.setInterpolation(interp.value)).catch(report("interpolation"));
     });
     const loop = this.el("tl-loop");
     loop?.addEventListener("change", () => { this.loop = loop.checked; });
-    const saving = !!(this.v.summary.save && this.v.summary.save.pose);
+    const summary = this.store.rig.summary;
+    const saving = !!(summary.save && summary.save.pose);
     for (const [id, what, act] of [["tl-save", "save clip", () => this.saveClip()],
                                    ["tl-export", "export GIF", () => this.exportClip()]]) {
       const b = this.el(id);
