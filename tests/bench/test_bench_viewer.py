@@ -94,6 +94,27 @@ def test_the_table_gives_fps_and_the_ratio_to_three_lbs():
     line = next(ln for ln in text.splitlines() if ln.strip().startswith("1,000  stbs-dqs"))
     assert line.split() == ["1,000", "stbs-dqs", "3.00", "333.3", "1.50", "7"]
     assert "canvas 640x400" in text and "1.50x three-lbs" in text
+    assert "target" not in text                      # the check is at 100k vertices only
+    rows = [{"vertices": 100_000, "method": m, "ms_per_frame": t}
+            for m, t in (("stbs-dqs", 16.0), ("three-lbs", 10.0))]
+    meta = {"canvas": [640, 400], "latency": {"100000": {
+        "dab_ms": 12.5, "dabs": 40, "dab_vertices": 9000, "seek_ms": 30.25, "seeks": 40}}}
+    text = bv.format_table(rows, meta)
+    assert "1.60x three-lbs's frame time (target: within 1.5x: missed)" in text
+    tail = text.split("latency: a paint dab", 1)[1]
+    line = next(ln for ln in tail.splitlines() if ln.strip().startswith("100,000  "))
+    assert line.split() == ["100,000", "12.50", "40", "9,000", "30.25", "40"]
+    rows[0]["ms_per_frame"] = 15.0
+    assert "(target: within 1.5x: met)" in bv.format_table(rows, meta)
+
+
+def test_the_seek_clip_has_1000_keys_that_read_as_a_clip():
+    clip = bv.seek_clip()
+    assert len(clip["keys"]) == bv.SEEK_KEYS == 1000
+    sk = bv.tube_rig(100).skeleton
+    c = stbs.io.read_clip(clip, sk)
+    a, b = c.pose(0.0), c.pose(10.0)
+    assert np.abs(a.rotations - b.rotations).max() > 0.05
 
 
 # --------------------------------------------------------------------------- command line
@@ -104,14 +125,22 @@ def test_the_command_writes_design_json_for_every_method_and_size(capsys, tmp_pa
                           "--browser", browser_path, "--json", str(out))
     assert code == 0, err
     doc = json.loads(out.read_text())
-    assert set(doc) == {"viewer"}
+    assert set(doc) == {"viewer", "latency"}
     assert [(r["vertices"], r["method"]) for r in doc["viewer"]] == \
         [(n, m) for n in (2000, 3000) for m in METHODS + ("three-lbs",)]
     for r in doc["viewer"]:
         assert set(r) == {"vertices", "method", "ms_per_frame"}
         assert isinstance(r["ms_per_frame"], float)
         assert math.isfinite(r["ms_per_frame"]) and r["ms_per_frame"] > 0
+    # the latencies: a stroke's dabs and the seeks, timed in the page, each size
+    assert [r["vertices"] for r in doc["latency"]] == [2000, 3000]
+    for r in doc["latency"]:
+        assert set(r) == {"vertices", "dab_ms", "dabs", "dab_vertices", "seek_ms", "seeks"}
+        assert r["dabs"] >= 10 and r["seeks"] == bv.SEEKS
+        assert 0 < r["dab_ms"] < 1000 and 0 < r["seek_ms"] < 10_000
+        assert 50 < r["dab_vertices"] < r["vertices"]       # the brush covers a part
     assert "WebGL renderer:" in text and "canvas 1280x720" in text
+    assert "latency: a paint dab" in text
     assert sum(ln.split()[1:2] == ["three-lbs"] for ln in text.splitlines()) == 2
     assert not list(tmp_path.glob("*.tmp*"))           # written by rename
 

@@ -23,6 +23,13 @@ twist along it, so the peer draws the pose without stretch and twist. It is time
 same way, in the same rounds: pose to bone matrices (three's bone texture upload),
 render, 1-pixel ``readPixels``.
 
+Beside the frame times it measures two latencies on the viewer's page: a paint dab
+(one mouse stroke of bone-weight painting along the posed chain; each dab timed in the
+page: the brush's vertex query, the W/E update, the changed rows' four-heaviest layout
+and their upload to the GPU) and a seek (``stbsViewer.seek`` in a :data:`SEEK_KEYS`-key
+clip, :func:`seek_clip`), medians; and it checks stbs-dqs against the peer at
+:data:`CHECK_VERTICES` vertices (target: within :data:`CHECK_RATIO` times its frame time).
+
 The canvas is :data:`CANVAS` CSS pixels at a device pixel ratio of 1 for every run.
 By default Chromium renders with SwiftShader (``--use-angle=swiftshader``): WebGL on
 the CPU, so the figures are those of software rendering; ``--gpu`` starts it with
@@ -65,7 +72,8 @@ from .skinning import _choice_list, _parse_sizes
 
 __all__ = ["PEER", "VIEWER_METHODS", "DEFAULT_SIZES", "CANVAS", "WARMUP", "ROUNDS", "BONES",
            "SWIFTSHADER_ARGS", "GPU_ARGS", "BUNDLES", "default_browser", "check_browser",
-           "check_bundles", "tube_rig", "bench_pose",
+           "check_bundles", "tube_rig", "bench_pose", "seek_clip", "CHECK_VERTICES",
+           "CHECK_RATIO", "SEEK_KEYS", "SEEKS",
            "auto_frames", "ViewerBench", "run_bench", "format_table", "add_arguments",
            "requires", "collect", "run", "main"]
 
@@ -405,7 +413,7 @@ def run_bench(sizes: Sequence[int] = DEFAULT_SIZES,
 
     rows: list[dict] = []
     meta: dict = {"renderer": None, "browser": bench.version, "canvas": list(bench.canvas),
-                  "frames": {}, "rounds": {}, "three": None, "warmup": WARMUP}
+                  "frames": {}, "rounds": {}, "three": None, "warmup": WARMUP, "latency": {}}
     for n in sizes:
         count = int(frames) if frames is not None else auto_frames(n)
         meta["frames"][str(n)] = count
@@ -430,11 +438,88 @@ def run_bench(sizes: Sequence[int] = DEFAULT_SIZES,
                 log(f"{n:,} vertices: {', '.join(methods)}, {count} frames each in "
                     f"{min(count, ROUNDS)} rounds")
                 times = _rounds(pages, methods, count)
+                log(f"{n:,} vertices: paint dabs and seeks")
+                meta["latency"][str(n)] = _latency(viewer, seed=seed)
             finally:
                 for page in pages.values():
                     page.close()
         rows += [{"vertices": n, "method": m, "ms_per_frame": times[m]} for m in methods]
     return rows, meta
+
+
+#: The frame-time check: stbs-dqs against three-lbs at this many vertices ...
+CHECK_VERTICES = 100_000
+#: ... within this ratio.
+CHECK_RATIO = 1.5
+#: Keys of the clip the seek latency is measured in.
+SEEK_KEYS = 1000
+#: Seeks timed per size.
+SEEKS = 40
+
+
+def seek_clip(bones: int = BONES, keys: int = SEEK_KEYS, *, seed: int = 0) -> dict:
+    """A clip of ``keys`` keyed poses, 30 keys a second, every bone turning a little
+    about its own random axis from key to key (the clip ``stbs bench --viewer`` seeks in)."""
+    rng = np.random.default_rng([seed, 5])
+    axes = rng.standard_normal((int(bones), 3))
+    phase = rng.uniform(0, 2 * np.pi, int(bones))
+    out = []
+    for k in range(int(keys)):
+        ang = 25 * np.sin(0.05 * k + phase)
+        rotate = {str(i): {"axis": axes[i].tolist(), "angle": float(ang[i])}
+                  for i in range(int(bones))}
+        out.append({"time": k / 30, "pose": {"degrees": True, "rotate": rotate}})
+    return {"fps": 30, "interpolation": "linear", "keys": out}
+
+
+_DABS = """async () => {
+  const s = await stbsViewer.lastStroke();
+  return s ? s.dabs.map(d => [d.ms, d.covered]) : [];
+}"""
+_SEEKS = """async ([count, end]) => {
+  const times = [];
+  for (let k = 0; k < count; k++) {
+    const t = end * ((k * 0.618034) % 1);
+    const t0 = performance.now();
+    await stbsViewer.seek(t);
+    times.push(performance.now() - t0);
+  }
+  return times;
+}"""
+
+
+def _latency(page, *, seed: int = 0) -> dict:
+    """Paint-dab and seek latency on the viewer's page (ms, medians).
+
+    Dabs: bone-weight painting with the page's default brush (radius 8% of the
+    diagonal), one mouse stroke along the posed chain's joints on the page; each dab's
+    time is measured in the page (the brush's query, the W/E update, the layout of the
+    changed rows and their upload to the GPU; not the drawing, which follows once a
+    frame). Seeks: ``stbsViewer.seek(t)`` in a :data:`SEEK_KEYS`-key clip, each until
+    the pose is shown, at :data:`SEEKS` times spread over the clip.
+    """
+    page.bring_to_front()
+    page.evaluate("stbsViewer.setPaint({mode: 'bone', bone: 10, op: 'add', strength: 0.1})")
+    J = page.evaluate("stbsViewer.jointScreenPositions()")
+    m = page.mouse
+    m.move(*J[1])
+    m.down()
+    for x, y in J[2:-1]:
+        m.move(x, y, steps=8)
+    m.up()
+    dabs = page.evaluate(_DABS)
+    page.evaluate("stbsViewer.paintUndo()")
+    page.evaluate("stbsViewer.setPaint({mode: 'off'})")
+    clip = seek_clip(len(J) - 1, seed=seed)
+    page.evaluate("c => stbsViewer.setClip(c)", clip)
+    seeks = page.evaluate(_SEEKS, [SEEKS, clip["keys"][-1]["time"]])
+    page.evaluate("stbsViewer.clearKeys()")
+    if not dabs:
+        raise RuntimeError("the paint stroke made no dab (the brush found no mesh under the "
+                           "pointer)")
+    return {"dab_ms": float(statistics.median(d[0] for d in dabs)), "dabs": len(dabs),
+            "dab_vertices": int(statistics.median(d[1] for d in dabs)),
+            "seek_ms": float(statistics.median(seeks)), "seeks": len(seeks)}
 
 
 def _check(sizes, methods, frames) -> tuple[tuple[int, ...], tuple[str, ...]]:
@@ -487,8 +572,24 @@ def format_table(rows: Sequence[dict], meta: dict, machine: dict | None = None) 
         sd = next((r["ms_per_frame"] for r in rows
                    if r["vertices"] == n and r["method"] == "stbs-dqs"), None)
         if sd is not None:
+            verdict = ""
+            if n == CHECK_VERTICES:
+                verdict = (f" (target: within {CHECK_RATIO}x: "
+                           f"{'met' if sd / peer[n] <= CHECK_RATIO else 'missed'})")
             lines.append(f"\nstbs-dqs (stretch and twist) at {n:,} vertices: "
-                         f"{sd / peer[n]:.2f}x {PEER}'s frame time")
+                         f"{sd / peer[n]:.2f}x {PEER}'s frame time{verdict}")
+    latency = meta.get("latency") or {}
+    if latency:
+        lines += ["", "latency: a paint dab (median of one stroke's dabs: the brush, the W/E "
+                  "update, the changed rows' layout and upload; bone weights, radius 8% of the "
+                  f"diagonal) and a seek (median of stbsViewer.seek in a {SEEK_KEYS}-key clip, "
+                  "until the pose is shown)", ""]
+        head = (f"{'vertices':>10}  {'dab ms':>8} {'dabs':>5} {'vertices/dab':>12}  "
+                f"{'seek ms':>8} {'seeks':>5}")
+        lines += [head, "-" * len(head)]
+        for n, d in sorted(latency.items(), key=lambda kv: int(kv[0])):
+            lines.append(f"{int(n):>10,}  {d['dab_ms']:8.2f} {d['dabs']:>5} "
+                         f"{d['dab_vertices']:>12,}  {d['seek_ms']:8.2f} {d['seeks']:>5}")
     return "\n".join(lines)
 
 
@@ -521,7 +622,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "(default 600)")
     parser.add_argument("--json", metavar="OUT.json", default=None,
                         help='also write {"viewer": [{"vertices", "method", '
-                             '"ms_per_frame"}, ...]} (to a temporary file, then renamed)')
+                             '"ms_per_frame"}, ...], "latency": [{"vertices", "dab_ms", '
+                             '"seek_ms", ...}, ...]} (to a temporary file, then renamed)')
 
 
 def requires(args: argparse.Namespace) -> list[str]:
@@ -544,7 +646,8 @@ def collect(args: argparse.Namespace, *, log: Log = quiet) -> tuple[dict, dict, 
     if args.gpu and "swiftshader" in str(meta.get("renderer")).lower():
         log("note: --gpu was given, but Chromium found no GPU it could use and rendered "
             "with SwiftShader (see the WebGL renderer line)")
-    return {"viewer": rows}, meta, machine
+    latency = [dict(vertices=int(n), **d) for n, d in meta.get("latency", {}).items()]
+    return {"viewer": rows, "latency": latency}, meta, machine
 
 
 def run(args: argparse.Namespace) -> int:
