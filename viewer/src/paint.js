@@ -261,7 +261,7 @@ export class WeightEditor {
     const k = COLOR_MODES.indexOf(name);
     if (k < 0) throw bad("colour mode", `one of ${COLOR_MODES.join(", ")}`, name);
     this.colorModeName = name;
-    this.view.material.uniforms.uColorMode.value = k;
+    this.view.setUniform("uColorMode", k);
     const sel = document.getElementById("color-mode");
     if (sel) sel.value = name;
     this.view.render();
@@ -405,12 +405,13 @@ export class WeightEditor {
 
   // ------------------------------------------------------------------ strokes
   onDown(e) {
-    if (this.settings.mode === "off" || e.target !== this.canvas || e.button !== 0 || this.stroke) return;
+    if (this.settings.mode === "off" || e.target !== this.canvas || e.button !== 0 || e.altKey ||
+        this.stroke) return;                   // Alt+drag orbits, as in every mode
     const hit = this.pick(e.clientX, e.clientY);
     if (!hit) return;                          // off the mesh: the orbit controls have it
     e.stopImmediatePropagation();
     e.preventDefault();
-    this.view.controls.enabled = false;
+    this.view.setOrbit(false);
     try { this.canvas.setPointerCapture(e.pointerId); } catch (_) { /* synthetic */ }
     this.beginStroke(e.pointerId);
     this.dab(hit, e.clientX, e.clientY);
@@ -433,7 +434,7 @@ export class WeightEditor {
     if (!this.stroke || e.pointerId !== this.stroke.id) return;
     e.stopImmediatePropagation();
     try { this.canvas.releasePointerCapture(e.pointerId); } catch (_) { /* synthetic */ }
-    this.view.controls.enabled = true;
+    this.view.setOrbit(true);
     this.endStroke();
   }
 
