@@ -196,9 +196,11 @@ def test_colour_modes_change_the_picture_and_endpoint_is_grey_where_w_is_0(plate
     J = np.array(p.js("stbsViewer.jointScreenPositions()"))
     BE = np.asarray(p.rig.skeleton.BE)
 
-    def off_skeleton(x, y):       # farther than 5 px from every drawn bone
-        a, b = J[BE[:, 0]], J[BE[:, 1]]
+    def off_skeleton(x, y):       # farther than 5 px from every drawn bone, and off the
+        a, b = J[BE[:, 0]], J[BE[:, 1]]     # selected bone's ring (11 px round its start)
         t = np.clip(np.einsum("ij,ij->i", [x, y] - a, b - a) / np.sum((b - a) ** 2, 1), 0, 1)
+        if np.linalg.norm(J[BE[bone, 0]] - [x, y]) < 14:
+            return False
         return np.linalg.norm(a + t[:, None] * (b - a) - [x, y], axis=1).min() > 5
 
     img = shots["endpoint"]
