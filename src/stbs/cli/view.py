@@ -376,7 +376,7 @@ def run(args: argparse.Namespace) -> int:
 
     from ..viewer.static import page_missing
     from ._errors import CommandError
-    from ._main import _flush
+    from ._report import flush_warnings as _flush
 
     kind, save_as = _check(args)
     missing = page_missing()
