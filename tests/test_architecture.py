@@ -23,9 +23,9 @@ import pytest
 
 SRC = Path(__file__).resolve().parents[1] / "src" / "stbs"
 
-MATHS = {"_checks", "_optional", "_jit", "_json", "_inputs", "methods", "geometry", "transforms",
-         "skeleton", "pose", "clip", "motion", "retargeting", "skinning", "weights", "meshing",
-         "shapes"}
+MATHS = {"_checks", "_arrays", "_optional", "_jit", "_json", "_inputs", "methods", "geometry",
+         "transforms", "skeleton", "pose", "clip", "motion", "retargeting", "skinning", "weights",
+         "meshing", "shapes"}
 DATA = {"rig", "io"}
 FRONT = {"cli", "demo", "bench", "viewer", "bake"}
 TIER = {**{m: 0 for m in MATHS}, **{m: 1 for m in DATA}, **{m: 2 for m in FRONT}}
@@ -208,3 +208,98 @@ def test_the_method_list_check_finds_a_copy(tmp_path):
     path.write_text('M = ("stbs-dqs", "lbs", "dqs", "stbs-lbs")\n'
                     'x: Literal["lbs", "dqs", "stbs-lbs", "stbs-dqs"]\n')
     assert _typed_lists(path, _method_lists()) == [(1, "SKINNING_METHODS")]
+
+
+def import_graph() -> dict[str, dict[str, int]]:
+    """module -> {module it imports: first line}, for every import in src/stbs (module
+    level and inside functions); ``from P import x`` names the module ``P.x`` when there
+    is one, else ``P``."""
+    paths = dict((".".join(parts), p) for p, parts in _modules())
+    graph: dict[str, dict[str, int]] = {}
+    for name, path in paths.items():
+        edges = graph.setdefault(name, {})
+        for line, mod, names in _imports(path, name.split(".")):
+            base = ".".join(mod)
+            targets = [f"{base}.{n}" for n in names if f"{base}.{n}" in paths] or [base]
+            if len(targets) < len(names) and base in paths:
+                targets.append(base)
+            for t in targets:
+                if t in paths and t != name:
+                    edges.setdefault(t, line)
+    return graph
+
+
+def import_cycles(graph: dict[str, dict[str, int]]) -> list[list[str]]:
+    """One cycle (a list of modules, the first repeated at the end) per strongly
+    connected component of more than one module (Tarjan, iterative)."""
+    index, low, on, stack, comps, counter = {}, {}, set(), [], [], [0]
+    for root in graph:
+        if root in index:
+            continue
+        work = [(root, iter(graph[root]))]
+        index[root] = low[root] = counter[0]
+        counter[0] += 1
+        stack.append(root)
+        on.add(root)
+        while work:
+            v, it = work[-1]
+            w = next(it, None)
+            if w is not None:
+                if w not in index:
+                    index[w] = low[w] = counter[0]
+                    counter[0] += 1
+                    stack.append(w)
+                    on.add(w)
+                    work.append((w, iter(graph.get(w, {}))))
+                elif w in on:
+                    low[v] = min(low[v], index[w])
+                continue
+            work.pop()
+            if work:
+                low[work[-1][0]] = min(low[work[-1][0]], low[v])
+            if low[v] == index[v]:
+                comp = []
+                while True:
+                    w = stack.pop()
+                    on.discard(w)
+                    comp.append(w)
+                    if w == v:
+                        break
+                if len(comp) > 1:
+                    comps.append(comp)
+    return [_cycle_in(graph, set(c)) for c in comps]
+
+
+def _cycle_in(graph, comp: set[str]) -> list[str]:
+    """A shortest cycle through the component's first module (breadth first)."""
+    start = min(comp)
+    prev, frontier = {start: None}, [start]
+    while frontier:
+        nxt = []
+        for v in frontier:
+            for w in graph[v]:
+                if w == start:
+                    path = [v]
+                    while prev[path[-1]] is not None:
+                        path.append(prev[path[-1]])
+                    return [*reversed(path), start]
+                if w in comp and w not in prev:
+                    prev[w] = v
+                    nxt.append(w)
+        frontier = nxt
+    return sorted(comp)
+
+
+def test_no_import_cycles():
+    graph = import_graph()
+    cycles = [" -> ".join(f"{a} (line {graph[a][b]})" if b else a
+                          for a, b in zip(c, [*c[1:], None], strict=True))
+              for c in import_cycles(graph)]
+    assert not cycles, "import cycles:\n" + "\n".join(cycles)
+
+
+def test_the_cycle_check_finds_a_cycle():
+    # the check above can fail: a loop of three modules is found and named
+    graph = {"a": {"b": 1}, "b": {"c": 2}, "c": {"a": 3, "d": 4}, "d": {}}
+    assert import_cycles(graph) == [["a", "b", "c", "a"]]
+    assert import_cycles({"a": {"b": 1}, "b": {}}) == []

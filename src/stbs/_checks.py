@@ -1,7 +1,9 @@
 """Input validation at the public boundary (STYLE habit 3: check once, trust inside).
 
 Every function raises ``ValueError`` (or ``TypeError``) whose message names the
-argument, what was expected and what arrived.
+argument, what was expected and what arrived. The array checks themselves live in
+:mod:`stbs._arrays` (re-exported here), so that :mod:`stbs.skeleton` can use them while
+this module checks skeleton arguments against :class:`stbs.Skeleton`.
 """
 
 from __future__ import annotations
@@ -12,6 +14,12 @@ from typing import Any
 
 import numpy as np
 import scipy.sparse as sp
+
+from ._arrays import index_array, real_array
+from .skeleton import Skeleton
+
+__all__ = ["choice", "real_array", "index_array", "vertices", "skeleton", "bone_weights",
+           "endpoint_weights", "dtype_choice", "PARTITION_TOL", "NEGATIVE_TOL"]
 
 #: Tolerance on row sums of W before rows are renormalised (with a warning).
 PARTITION_TOL = 1e-6
@@ -24,53 +32,6 @@ def choice(name: str, value: Any, valid: Sequence[str]) -> str:
     if not isinstance(value, str) or value not in valid:
         raise ValueError(f"{name} must be one of {', '.join(map(repr, valid))}, got {value!r}")
     return value
-
-
-def _check_shape(name: str, a: np.ndarray, shape: tuple) -> None:
-    """``shape`` may hold ``None`` for a free axis."""
-    if a.ndim != len(shape) or any(
-            s is not None and s != t for s, t in zip(shape, a.shape, strict=True)):
-        want = "(" + ", ".join("?" if s is None else str(s) for s in shape) + ")"
-        raise ValueError(f"{name} must have shape {want}, got {a.shape}")
-
-
-def real_array(name: str, x: Any, *, ndim: int | None = None, shape: tuple | None = None,
-               dtype=np.float64) -> np.ndarray:
-    """Convert ``x`` to a finite float array, checking ``ndim`` and ``shape``.
-
-    ``shape`` may hold ``None`` for a free axis.
-    """
-    try:
-        a = np.asarray(x, dtype=dtype)
-    except (TypeError, ValueError) as exc:
-        raise ValueError(f"{name} must be a numeric array, got {type(x).__name__}: {exc}") from None
-    if ndim is not None and a.ndim != ndim:
-        raise ValueError(f"{name} must be a {ndim}-D array, got shape {a.shape}")
-    if shape is not None:
-        _check_shape(name, a, shape)
-    if not np.all(np.isfinite(a)):
-        bad = np.argwhere(~np.isfinite(a))[0]
-        at = tuple(int(i) for i in bad)
-        raise ValueError(f"{name} must be finite, got {a[at]} at index {at}")
-    return a
-
-
-def index_array(name: str, x: Any, *, ndim: int, shape: tuple | None = None) -> np.ndarray:
-    """Convert ``x`` to an int64 index array; floats must be whole numbers."""
-    a = np.asarray(x)
-    if a.size == 0:
-        a = a.astype(np.int64)
-    if a.dtype.kind == "f":
-        if not np.all(np.isfinite(a)) or np.any(a != np.round(a)):
-            raise ValueError(f"{name} must hold integer indices, got non-integer values")
-    elif a.dtype.kind not in "iu":
-        raise ValueError(f"{name} must be an integer array, got dtype {a.dtype}")
-    a = a.astype(np.int64)
-    if a.ndim != ndim:
-        raise ValueError(f"{name} must be a {ndim}-D array, got shape {a.shape}")
-    if shape is not None:
-        _check_shape(name, a, shape)
-    return a
 
 
 def vertices(V: Any, *, name: str = "V") -> np.ndarray:
@@ -91,8 +52,6 @@ def skeleton(sk: Any, V: Any = None, *, name: str = "V") -> np.ndarray | None:
     Skeleton, ``ValueError`` when ``V`` (validated by :func:`vertices`) has not
     ``sk.dim`` columns. Returns ``V`` as float64 (None when not given).
     """
-    from .skeleton import Skeleton
-
     if not isinstance(sk, Skeleton):
         raise TypeError(f"sk must be a stbs.Skeleton, got {type(sk).__name__}")
     if V is None:

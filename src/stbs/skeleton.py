@@ -6,7 +6,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from . import _checks
+from . import _arrays
 
 
 class Skeleton:
@@ -70,10 +70,10 @@ class Skeleton:
     """
 
     def __init__(self, C, BE, names: Sequence[str] | None = None, P=None):
-        C = _checks.real_array("C", C, ndim=2)
+        C = _arrays.real_array("C", C, ndim=2)
         if C.shape[1] not in (2, 3):
             raise ValueError(f"C must have shape (j, 2) or (j, 3), got {C.shape}")
-        BE = _checks.index_array("BE", BE, ndim=2, shape=(None, 2))
+        BE = _arrays.index_array("BE", BE, ndim=2, shape=(None, 2))
         if BE.shape[0] == 0:
             raise ValueError("BE must hold at least one bone, got shape (0, 2)")
         j, b = C.shape[0], BE.shape[0]
@@ -124,7 +124,7 @@ class Skeleton:
                 if enders.size == 1:
                     parents[i] = enders[0]
         else:
-            parents = _checks.index_array("P", P, ndim=1, shape=(b,)).astype(np.int64)
+            parents = _arrays.index_array("P", P, ndim=1, shape=(b,)).astype(np.int64)
             bad = np.flatnonzero((parents < -1) | (parents >= b))
             if bad.size:
                 i = int(bad[0])

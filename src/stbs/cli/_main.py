@@ -36,10 +36,11 @@ from . import rig as _rig
 from . import view as _view
 from . import weights as _weights
 from ._errors import CommandError
+from ._report import PROG, describe
+from ._report import flush_warnings as _flush
 
 __all__ = ["main", "build_parser", "CommandError"]
 
-PROG = "stbs"
 #: Input problems reported as one line and exit status 2.
 INPUT_ERRORS = (ValueError, TypeError, OSError, OptionalDependencyError)
 
@@ -50,18 +51,6 @@ class _Parser(argparse.ArgumentParser):
     def error(self, message: str) -> NoReturn:
         line = " ".join(message.split())
         self.exit(2, f"{self.prog}: error: {line} (see '{self.prog} --help')\n")
-
-
-def _one_line(text: str) -> str:
-    return " ".join(str(text).split())
-
-
-def describe(exc: BaseException) -> str:
-    """One line for an input error: what is wrong with which input."""
-    if isinstance(exc, OSError) and exc.filename is not None and exc.strerror:
-        return _one_line(f"{exc.filename}: {exc.strerror}")
-    msg = str(exc) or type(exc).__name__
-    return _one_line(msg)
 
 
 def _version() -> str:
@@ -192,12 +181,6 @@ def _refuse_output_over_input(args: argparse.Namespace) -> None:
                 note_input(v)
     for key, v in outs:
         check_output(v, "--" + key.replace("_", "-"))
-
-
-def _flush(caught) -> None:
-    for w in caught:
-        kind = "" if issubclass(w.category, UserWarning) else f"{w.category.__name__}: "
-        print(f"{PROG}: warning: {kind}{_one_line(w.message)}", file=sys.stderr)
 
 
 def _code(exc: SystemExit) -> int:
