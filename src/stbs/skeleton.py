@@ -76,15 +76,7 @@ class Skeleton:
         BE = _arrays.index_array("BE", BE, ndim=2, shape=(None, 2))
         if BE.shape[0] == 0:
             raise ValueError("BE must hold at least one bone, got shape (0, 2)")
-        j, b = C.shape[0], BE.shape[0]
-        if names is None:
-            names = [f"bone{i}" for i in range(b)]
-        names = [str(s) for s in names]
-        if len(names) != b:
-            raise ValueError(f"names must have {b} entries (one per bone), got {len(names)}")
-        if len(set(names)) != b:
-            dup = next(s for s in names if names.count(s) > 1)
-            raise ValueError(f"names must be unique, got {dup!r} twice")
+        names = _bone_names(names, BE.shape[0])
         self.C = C
         self.BE = BE
         self.names = names
@@ -92,18 +84,7 @@ class Skeleton:
         def label(i: int) -> str:
             return f"bone {i} ({names[i]!r}, joints {BE[i, 0]}->{BE[i, 1]})"
 
-        bad = np.flatnonzero((BE < 0).any(axis=1) | (BE >= j).any(axis=1))
-        if bad.size:
-            i = int(bad[0])
-            raise ValueError(f"BE: {label(i)} refers to a joint outside 0..{j - 1}")
-        seen: dict[tuple[int, int], int] = {}
-        for i, (s, e) in enumerate(BE.tolist()):
-            if s == e:
-                raise ValueError(f"BE: {label(i)} starts and ends at the same joint")
-            key = (min(s, e), max(s, e))
-            if key in seen:
-                raise ValueError(f"BE: {label(i)} is listed twice (also bone {seen[key]})")
-            seen[key] = i
+        _check_bones(C, BE, label)
         vec = C[BE[:, 1]] - C[BE[:, 0]]
         lengths = np.linalg.norm(vec, axis=1)
         scale = max(float(np.abs(C).max()), 1.0)
@@ -112,47 +93,16 @@ class Skeleton:
             i = int(zero[0])
             raise ValueError(f"BE: {label(i)} has zero length; STBS needs a bone direction "
                              "(merge the joints or drop the bone)")
-        if P is None:
-            parents = np.full(b, -1, dtype=np.int64)
-            for i, s in enumerate(BE[:, 0].tolist()):
-                enders = np.flatnonzero(BE[:, 1] == s)
-                if enders.size > 1:
-                    raise ValueError(
-                        f"BE: {label(i)} has {enders.size} parents (bones "
-                        f"{', '.join(map(str, enders.tolist()))} all end at joint {s}); "
-                        "give P to say which bone is its parent")
-                if enders.size == 1:
-                    parents[i] = enders[0]
-        else:
-            parents = _arrays.index_array("P", P, ndim=1, shape=(b,)).astype(np.int64)
-            bad = np.flatnonzero((parents < -1) | (parents >= b))
-            if bad.size:
-                i = int(bad[0])
-                raise ValueError(f"P: {label(i)} has parent {int(parents[i])}, outside "
-                                 f"-1..{b - 1}")
-            own = np.flatnonzero(parents == np.arange(b))
-            if own.size:
-                raise ValueError(f"P: {label(int(own[0]))} is its own parent")
+        parents = _parents_from_joints(BE, label) if P is None else _given_parents(P, label,
+                                                                                   len(BE))
         # Topological order by depth; a bone no root reaches lies on (or under) a cycle.
         depth = tree_depths(parents)
         if (depth < 0).any():
             i = _on_cycle(parents, depth)
             raise ValueError(f"{'BE' if P is None else 'P'}: {label(i)} lies on a cycle of "
                              "bones")
-        has = parents >= 0
-        connected = np.zeros(b, dtype=bool)
-        connected[has] = BE[has, 0] == BE[parents[has], 1]
-        # t_c of DESIGN §2: the start's projection on the parent bone, clamped.
-        hang = np.zeros(b)
-        off = has & ~connected
-        if off.any():
-            p = parents[off]
-            rel = C[BE[off, 0]] - C[BE[p, 0]]
-            hang[off] = np.clip(np.einsum("bi,bi->b", rel, vec[p]) / lengths[p] ** 2, 0, 1)
-        hang[connected] = 1.0
         self.parents = parents
-        self.connected = connected
-        self.hang = hang
+        self.connected, self.hang = _hangs(C, BE, parents, vec, lengths)
         self.lengths = lengths
         self.axes = vec / lengths[:, None]
         self.dim = int(C.shape[1])
@@ -258,3 +208,77 @@ def _on_cycle(parents: np.ndarray, depth: np.ndarray) -> int:
         seen.add(k)
         k = int(parents[k])
     return k
+
+
+def _bone_names(names, b: int) -> list[str]:
+    """One unique name per bone (default ``bone0``, ``bone1``, ...)."""
+    if names is None:
+        names = [f"bone{i}" for i in range(b)]
+    names = [str(s) for s in names]
+    if len(names) != b:
+        raise ValueError(f"names must have {b} entries (one per bone), got {len(names)}")
+    if len(set(names)) != b:
+        dup = next(s for s in names if names.count(s) > 1)
+        raise ValueError(f"names must be unique, got {dup!r} twice")
+    return names
+
+
+def _check_bones(C: np.ndarray, BE: np.ndarray, label) -> None:
+    """Every bone joins two different joints of ``C``, and no two bones join the same."""
+    j = C.shape[0]
+    bad = np.flatnonzero((BE < 0).any(axis=1) | (BE >= j).any(axis=1))
+    if bad.size:
+        raise ValueError(f"BE: {label(int(bad[0]))} refers to a joint outside 0..{j - 1}")
+    seen: dict[tuple[int, int], int] = {}
+    for i, (s, e) in enumerate(BE.tolist()):
+        if s == e:
+            raise ValueError(f"BE: {label(i)} starts and ends at the same joint")
+        key = (min(s, e), max(s, e))
+        if key in seen:
+            raise ValueError(f"BE: {label(i)} is listed twice (also bone {seen[key]})")
+        seen[key] = i
+
+
+def _parents_from_joints(BE: np.ndarray, label) -> np.ndarray:
+    """Each bone's parent: the one bone that ends where it starts (-1: none)."""
+    parents = np.full(len(BE), -1, dtype=np.int64)
+    for i, s in enumerate(BE[:, 0].tolist()):
+        enders = np.flatnonzero(BE[:, 1] == s)
+        if enders.size > 1:
+            raise ValueError(
+                f"BE: {label(i)} has {enders.size} parents (bones "
+                f"{', '.join(map(str, enders.tolist()))} all end at joint {s}); "
+                "give P to say which bone is its parent")
+        if enders.size == 1:
+            parents[i] = enders[0]
+    return parents
+
+
+def _given_parents(P, label, b: int) -> np.ndarray:
+    """``P`` checked: one parent per bone in -1..b-1, none its own."""
+    parents = _arrays.index_array("P", P, ndim=1, shape=(b,)).astype(np.int64)
+    bad = np.flatnonzero((parents < -1) | (parents >= b))
+    if bad.size:
+        i = int(bad[0])
+        raise ValueError(f"P: {label(i)} has parent {int(parents[i])}, outside -1..{b - 1}")
+    own = np.flatnonzero(parents == np.arange(b))
+    if own.size:
+        raise ValueError(f"P: {label(int(own[0]))} is its own parent")
+    return parents
+
+
+def _hangs(C, BE, parents, vec, lengths) -> tuple[np.ndarray, np.ndarray]:
+    """Which bones start at their parent's end (connected), and where each child hangs
+    on its parent: t_c of DESIGN §2, the start's projection on the parent bone clamped
+    to [0, 1] (1 for a connected child, 0 for a root)."""
+    has = parents >= 0
+    connected = np.zeros(len(BE), dtype=bool)
+    connected[has] = BE[has, 0] == BE[parents[has], 1]
+    hang = np.zeros(len(BE))
+    off = has & ~connected
+    if off.any():
+        p = parents[off]
+        rel = C[BE[off, 0]] - C[BE[p, 0]]
+        hang[off] = np.clip(np.einsum("bi,bi->b", rel, vec[p]) / lengths[p] ** 2, 0, 1)
+    hang[connected] = 1.0
+    return connected, hang
