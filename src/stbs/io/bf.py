@@ -131,6 +131,33 @@ def read_bf(path: str | os.PathLike, *, dim: Dim = "auto") -> BoneForest:
     """
     dim = check_dim(dim)
     p = input_path(path, "skeleton")
+    rows, nums = _node_lines(p)
+    ncols = len(rows[0])
+    pairs = list(zip(rows, nums, strict=True))
+    wi = np.array([_int(p, t[0], "weight index", ln) for t, ln in pairs], dtype=np.int64)
+    wi = np.where(wi < 0, -1, wi)
+    par = np.array([_int(p, t[1], "parent index", ln) for t, ln in pairs], dtype=np.int64)
+    vals = _node_values(p, rows, nums)
+    _check_nodes(p, par, wi, nums)
+    C = _positions(p, par, vals[:, :3], nums)
+    child = np.flatnonzero(par >= 0)
+    BE = np.stack([par[child], child], axis=1).astype(np.int64).reshape(-1, 2)
+    handles = np.flatnonzero((par < 0) & (wi >= 0)).astype(np.int64)
+    return BoneForest(
+        C=apply_dim(C, dim, p, "joints"),
+        BE=BE,
+        weight_index=wi[child],
+        node_parent=par,
+        node_weight_index=wi,
+        handles=handles,
+        handle_weight_index=wi[handles],
+        extra=vals[:, 3:].copy() if ncols == 27 else None,
+    )
+
+
+def _node_lines(p) -> tuple[list[list[str]], list[int]]:
+    """The file's non-blank lines as tokens, and their line numbers; all of 5 or all of
+    27 columns."""
     rows: list[list[str]] = []
     nums: list[int] = []
     for ln, s in enumerate(read_lines(p), 1):
@@ -146,12 +173,13 @@ def read_bf(path: str | os.PathLike, *, dim: Dim = "auto") -> BoneForest:
             want = ("5 columns 'wi parent x y z' or 27 (FAST)" if len(t) not in _NCOLS
                     else f"{ncols} columns like line {nums[0]}")
             raise FormatError(p, want, f"{len(t)} columns", line=ln)
-    j = len(rows)
-    pairs = list(zip(rows, nums, strict=True))
-    wi = np.array([_int(p, t[0], "weight index", ln) for t, ln in pairs], dtype=np.int64)
-    par = np.array([_int(p, t[1], "parent index", ln) for t, ln in pairs], dtype=np.int64)
-    vals = np.empty((j, ncols - 2))
-    for k, (t, ln) in enumerate(pairs):
+    return rows, nums
+
+
+def _node_values(p, rows: list[list[str]], nums: list[int]) -> np.ndarray:
+    """Columns 3 on of every node line as finite floats (j, ncols - 2)."""
+    vals = np.empty((len(rows), len(rows[0]) - 2))
+    for k, (t, ln) in enumerate(zip(rows, nums, strict=True)):
         for c, tok in enumerate(t[2:]):
             try:
                 vals[k, c] = float(tok)
@@ -160,7 +188,12 @@ def read_bf(path: str | os.PathLike, *, dim: Dim = "auto") -> BoneForest:
     if not np.all(np.isfinite(vals)):
         k = int(np.argwhere(~np.isfinite(vals))[0, 0])
         raise FormatError(p, "finite numbers", quote(" ".join(rows[k])), line=nums[k])
-    wi = np.where(wi < 0, -1, wi)
+    return vals
+
+
+def _check_nodes(p, par: np.ndarray, wi: np.ndarray, nums: list[int]) -> None:
+    """Parents in -1..j-1 and not the node itself; each weight index used once."""
+    j = len(par)
     bad = np.flatnonzero((par < -1) | (par >= j) | (par == np.arange(j)))
     if bad.size:
         k = int(bad[0])
@@ -174,9 +207,12 @@ def read_bf(path: str | os.PathLike, *, dim: Dim = "auto") -> BoneForest:
                                   f"weight index {w} again (first on line {nums[seen[w]]})",
                                   line=nums[k])
             seen[w] = k
-    # Absolute positions: a node's offset is added to its parent's position;
-    # chains are resolved iteratively so any line order (and deep trees) work.
-    O = vals[:, :3]
+
+
+def _positions(p, par: np.ndarray, O: np.ndarray, nums: list[int]) -> np.ndarray:
+    """Absolute node positions (j, 3): a node's offset ``O`` added to its parent's
+    position; chains are resolved iteratively so any line order (and deep trees) work."""
+    j = len(par)
     C = np.full((j, 3), np.nan)
     done = np.zeros(j, dtype=bool)
     for k in range(j):
@@ -193,16 +229,4 @@ def read_bf(path: str | os.PathLike, *, dim: Dim = "auto") -> BoneForest:
             base = base + O[c]
             C[c] = base
             done[c] = True
-    child = np.flatnonzero(par >= 0)
-    BE = np.stack([par[child], child], axis=1).astype(np.int64).reshape(-1, 2)
-    handles = np.flatnonzero((par < 0) & (wi >= 0)).astype(np.int64)
-    return BoneForest(
-        C=apply_dim(C, dim, p, "joints"),
-        BE=BE,
-        weight_index=wi[child],
-        node_parent=par,
-        node_weight_index=wi,
-        handles=handles,
-        handle_weight_index=wi[handles],
-        extra=vals[:, 3:].copy() if ncols == 27 else None,
-    )
+    return C
