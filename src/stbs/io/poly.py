@@ -37,22 +37,39 @@ def read_polygons(path: str | os.PathLike) -> list[np.ndarray]:
     """
     suffix(path, (".poly",), "read_polygons")
     p = input_path(path, "polygon")
-    rows = []
-    for no, line in enumerate(read_lines(p), start=1):
-        s = line.split("#", 1)[0].split()
-        if s:
-            rows.append((no, s))
+    rows = _Rows(p)
+    X, base = _vertices(rows)
+    S = _segments(rows, len(X), base)
+    return _loops(p, X, S, base)
 
-    def number(k: int, what: str, kind=float):
-        if k >= len(rows):
-            raise FormatError(p, what, "the end of the file")
-        no, s = rows[k]
+
+class _Rows:
+    """The file's non-empty lines (comments dropped), read as numbers on demand."""
+
+    def __init__(self, p):
+        self.p = p
+        self.rows = []
+        for no, line in enumerate(read_lines(p), start=1):
+            s = line.split("#", 1)[0].split()
+            if s:
+                self.rows.append((no, s))
+
+    def numbers(self, k: int, what: str, kind=float):
+        """Line k's numbers (of ``kind``) and its line number; ``what`` names what was due."""
+        if k >= len(self.rows):
+            raise FormatError(self.p, what, "the end of the file")
+        no, s = self.rows[k]
         try:
             return [kind(x) for x in s], no
         except ValueError:
-            raise FormatError(p, what, repr(" ".join(s)), line=no) from None
+            raise FormatError(self.p, what, repr(" ".join(s)), line=no) from None
 
-    head, no = number(0, "a vertex header '<#vertices> 2 <#attributes> <#markers>'", int)
+
+def _vertices(rows: _Rows) -> tuple[np.ndarray, int]:
+    """The vertex section: positions (nv, 2) in id order and the first id (0 or 1)."""
+    p = rows.p
+    head, no = rows.numbers(0, "a vertex header '<#vertices> 2 <#attributes> <#markers>'",
+                            int)
     if len(head) < 2 or head[1] != 2:
         raise FormatError(p, "dimension 2 in the vertex header", repr(head), line=no)
     nv = head[0]
@@ -61,28 +78,37 @@ def read_polygons(path: str | os.PathLike) -> list[np.ndarray]:
                           "which is not supported)", line=no)
     ids, X = [], []
     for k in range(1, nv + 1):
-        v, no = number(k, f"vertex line {k} of {nv}: '<id> x y ...'")
+        v, no = rows.numbers(k, f"vertex line {k} of {nv}: '<id> x y ...'")
         if len(v) < 3:
-            raise FormatError(p, "'<id> x y ...'", repr(rows[k][1]), line=no)
+            raise FormatError(p, "'<id> x y ...'", repr(rows.rows[k][1]), line=no)
         ids.append(int(v[0]))
         X.append(v[1:3])
     base = min(ids)
     if sorted(ids) != list(range(base, base + nv)) or base not in (0, 1):
         raise FormatError(p, "vertex ids numbered consecutively from 0 or 1",
                           f"ids {min(ids)}..{max(ids)}")
-    X = np.asarray(X)[np.argsort(ids)]
-    sh, no = number(nv + 1, "a segment header '<#segments> <#markers>'", int)
-    ns = sh[0]
+    return np.asarray(X)[np.argsort(ids)], base
+
+
+def _segments(rows: _Rows, nv: int, base: int) -> np.ndarray:
+    """The segment section as 0-based vertex pairs (s, 2)."""
+    p = rows.p
+    sh, no = rows.numbers(nv + 1, "a segment header '<#segments> <#markers>'", int)
     segs = []
-    for k in range(nv + 2, nv + 2 + ns):
-        s, no = number(k, "'<id> <v1> <v2> ...'", int)
+    for k in range(nv + 2, nv + 2 + sh[0]):
+        s, no = rows.numbers(k, "'<id> <v1> <v2> ...'", int)
         if len(s) < 3 or not all(base <= x < base + nv for x in s[1:3]):
             raise FormatError(p, f"'<id> <v1> <v2>' with vertex ids in {base}..{base + nv - 1}",
-                              repr(" ".join(rows[k][1])), line=no)
+                              repr(" ".join(rows.rows[k][1])), line=no)
         segs.append(s[1:3])
     if not segs:
         raise FormatError(p, "segments forming closed polygons", "no segments")
-    S = np.asarray(segs, dtype=np.int64) - base
+    return np.asarray(segs, dtype=np.int64) - base
+
+
+def _loops(p, X: np.ndarray, S: np.ndarray, base: int) -> list[np.ndarray]:
+    """The closed polygons the segments form: two segments at every vertex used."""
+    nv = len(X)
     deg = np.bincount(S.ravel(), minlength=nv)
     bad = np.flatnonzero((deg != 0) & (deg != 2))
     if bad.size:
