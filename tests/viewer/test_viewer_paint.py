@@ -143,18 +143,21 @@ def _check_region(before, after, col, dabs, radius, V):
 
 @contextlib.contextmanager
 def _spy(srv):
-    """The request bodies of POST /api/endpoint-weights while in the block."""
-    calls, real = [], srv.endpoint_column
+    """The request bodies of the endpoint recomputes (POST /api/jobs/endpoint) while in
+    the block."""
+    import stbs.viewer.jobs as jobs
 
-    def spy(obj):
+    calls, real = [], jobs.read_endpoint_request
+
+    def spy(obj, rig, *, nested):
         calls.append(obj)
-        return real(obj)
+        return real(obj, rig, nested=nested)
 
-    srv.endpoint_column = spy
+    jobs.read_endpoint_request = spy
     try:
         yield calls
     finally:
-        del srv.endpoint_column
+        jobs.read_endpoint_request = real
 
 
 def _no_errors(p):
@@ -445,6 +448,21 @@ def test_painting_on_the_plate_saves_and_a_fresh_page_shows_it(plate, browser): 
     Ws = saved.W.toarray() if hasattr(saved.W, "toarray") else np.asarray(saved.W)
     Es = saved.E.toarray() if hasattr(saved.E, "toarray") else np.asarray(saved.E)
     assert np.array_equal(Ws, W1.astype(np.float64)) and np.array_equal(Es, E1.astype(np.float64))
+    # the file exists now: saving again is refused (409) unless asked to overwrite; the
+    # button asks first
+    with pytest.raises(Exception, match="409|exists"):
+        p.js("stbsViewer.saveRig()")
+    p.js("document.getElementById('weights-panel').open = true")
+    asked = []
+    p.page.once("dialog", lambda d: (asked.append(d.message), d.dismiss()))
+    p.page.click("#save-rig")
+    p.page.wait_for_function("() => document.getElementById('status').textContent === 'not saved'")
+    p.page.once("dialog", lambda d: (asked.append(d.message), d.accept()))
+    p.page.click("#save-rig")
+    p.page.wait_for_function(
+        "() => document.getElementById('status').textContent.startsWith('saved ')")
+    assert len(asked) == 2 and "Write over it?" in asked[0]
+    p.js("document.getElementById('weights-panel').open = false")
     fresh = Page.__new__(Page)               # a second page on the same server
     fresh.rig, fresh.srv, fresh.page_options = p.rig, p.srv, {}
     fresh.open(browser)
@@ -454,7 +472,9 @@ def test_painting_on_the_plate_saves_and_a_fresh_page_shows_it(plate, browser): 
         assert fresh.errors == []
     finally:
         fresh.page.close()
-    assert p.errors == []
+    # no errors but the browser's own lines for the three 409s asked for
+    assert len(p.errors) == 3 and all("status of 409" in e for e in p.errors), p.errors
+    p.errors.clear()
 
 
 # --------------------------------------------------------------------------- endpoint weights
@@ -465,7 +485,7 @@ def test_recompute_one_bones_endpoint_weights_by_projection(plate):
     with _spy(p.srv) as calls:       # W as the server has it (saved above): not sent
         col = p.js("b => stbsViewer.recomputeEndpoint(b, 'projection').then(a => Array.from(a))",
                    bone)
-    assert calls == [{"bone": bone, "method": "projection"}]
+    assert calls == [{"bone": bone, "method": "projection", "options": {}}]
     ref = stbs.weights.projection(np.asarray(p.rig.V), p.rig.skeleton)
     ref = np.asarray(ref.toarray() if hasattr(ref, "toarray") else ref)[:, bone]
     assert np.abs(np.array(col) - ref).max() < 1e-6
@@ -478,11 +498,18 @@ def test_recompute_one_bones_endpoint_weights_by_projection(plate):
     assert np.array_equal(_weights(p)[1], E0)
     # the same from the box: the endpoint menu and recompute, for the selected bone
     p.js("document.getElementById('weights-panel').open = true")
+    # the menu lists the methods the server says this rig can compute
+    methods = p.js("Array.from(document.querySelectorAll('#endpoint-method option'), o => o.value)")
+    from stbs.viewer.jobs import endpoint_methods
+
+    assert methods == list(endpoint_methods(p.rig)) and "projection" in methods
     p.js("b => stbsViewer.setPaint({bone: b})", bone)
     p.page.select_option("#endpoint-method", "projection")
+    assert p.page.is_hidden("#endpoint-progress") and p.page.is_hidden("#endpoint-cancel")
     p.page.click("#endpoint-recompute")
     done = f"{p.rig.skeleton.names[bone]}: endpoint weights by projection"
     p.page.wait_for_function("t => document.getElementById('status').textContent === t", arg=done)
+    assert p.page.is_hidden("#endpoint-progress")
     assert np.abs(_weights(p)[1][:, bone] - ref).max() < 1e-6
     p.js("document.getElementById('weights-panel').open = false")
     assert p.js("stbsViewer.paintUndo()") is True

@@ -600,37 +600,91 @@ export class WeightEditor {
   }
 
   // ------------------------------------------------------------------ the server
-  async recompute(bone, method, options = {}) {
-    const i = this.boneIndex(bone);
-    if (!ENDPOINT_METHODS.includes(method)) throw bad("endpoint method", `one of ${ENDPOINT_METHODS.join(", ")}`, method);
+  /** The endpoint methods this rig's mesh can compute (the server's list). */
+  endpointMethods() {
+    const m = this.summary.endpoint_methods;
+    return Array.isArray(m) && m.length ? m.filter((x) => ENDPOINT_METHODS.includes(x)) : ENDPOINT_METHODS.slice();
+  }
+
+  /**
+   * Recompute bone's endpoint weights on the server as a job (POST /api/jobs/endpoint),
+   * following its progress until done, then replace column E[:, bone] (one command).
+   * `onProgress({stage, done, total})` is called as the job reports; cancel() stops it.
+   * Resolves to the column (Float32Array); rejects when the job fails or is cancelled.
+   */
+  async recompute(bone, method, options = {}, onProgress = null) {
+    const i = this.boneIndex(bone), can = this.endpointMethods();
+    if (!can.includes(method)) throw bad("endpoint method", `one of ${can.join(", ")}`, method);
     if (options === null || typeof options !== "object" || Array.isArray(options)) {
       throw bad("endpoint options", "an object", options);
     }
-    const body = Object.assign({}, options, { bone: i, method });
+    if (this.job) throw new Error(`an endpoint recompute is running (${this.job.method}); cancel it first`);
+    const body = { bone: i, method, options };
     if (!sameArray(this.W, this.serverW)) {     // painted since loaded or saved: send ours
       const W = [], b = this.b;
       for (let r = 0; r < this.n; r++) W.push(Array.from(this.W.subarray(r * b, (r + 1) * b)));
       body.W = W;
     }
-    const r = await this.api("/api/endpoint-weights", {
-      method: "POST", body: JSON.stringify(body),
-      headers: { "Content-Type": "application/json", Accept: "application/octet-stream" } });
-    const col = new Float32Array(await r.arrayBuffer());
-    if (col.length !== this.n) throw new Error(`/api/endpoint-weights: expected ${this.n} values, got ${col.length}`);
-    this.setEndpointColumn(i, col, `recompute endpoint weights (${method})`);
-    return col;
+    const json = async (path, opts) => (await this.api(path, opts)).json();
+    const post = (obj) => ({ method: "POST", headers: { "Content-Type": "application/json" },
+                             body: obj === undefined ? undefined : JSON.stringify(obj) });
+    let st = await json("/api/jobs/endpoint", post(body));
+    const id = st.job || st.id;
+    this.job = { id, method, cancelled: false };
+    try {
+      while (st.state === "running") {
+        if (onProgress) onProgress(st);
+        await new Promise((ok) => setTimeout(ok, 100));
+        st = await json(`/api/jobs/${id}`);
+      }
+      if (onProgress) onProgress(st);
+      if (st.state === "cancelled") throw new Error(`recompute (${method}): cancelled`);
+      if (st.state !== "done") throw new Error(`recompute (${method}): ${st.error || st.state}`);
+      const r = await this.api(`/api/jobs/${id}/result`, { headers: { Accept: "application/octet-stream" } });
+      const col = new Float32Array(await r.arrayBuffer());
+      if (col.length !== this.n) throw new Error(`/api/jobs/${id}/result: expected ${this.n} values, got ${col.length}`);
+      this.setEndpointColumn(i, col, `recompute endpoint weights (${method})`);
+      return col;
+    } finally {
+      this.job = null;
+    }
   }
 
-  async saveRig() {
+  /** Cancel the running recompute; resolves to whether one was running. */
+  async cancelRecompute() {
+    const job = this.job;
+    if (!job) return false;
+    await this.api(`/api/jobs/${job.id}/cancel`, { method: "POST" });
+    return true;
+  }
+
+  /**
+   * POST /api/save-rig with the page's W and E. The server answers 409 when the file
+   * exists and `overwrite` is false; resolves to its answer.
+   */
+  async saveRig(overwrite = false) {
+    if (typeof overwrite !== "boolean") throw bad("overwrite", "true or false", overwrite);
     const nb = this.n * this.b, body = new Float32Array(2 * nb);
     body.set(this.W, 0);
     body.set(this.E, nb);
     const sent = this.W.slice();
     const r = await this.api("/api/save-rig", {
       method: "POST", body: body.buffer,
-      headers: { "Content-Type": "application/octet-stream", "X-Stbs-Arrays": "W,E", "X-Stbs-Dtype": "float32" } });
+      headers: { "Content-Type": "application/octet-stream", "X-Stbs-Arrays": "W,E", "X-Stbs-Dtype": "float32",
+                 "X-Stbs-Overwrite": String(overwrite) } });
     this.serverW = sent;          // the rig served now has these weights
     return r.json();
+  }
+
+  /** The save button: save; where the file exists, ask before writing over it. */
+  async saveRigAsking() {
+    try {
+      return await this.saveRig(false);
+    } catch (err) {
+      if (err.status !== 409) throw err;
+      if (!window.confirm(`${err.message}\n\nWrite over it?`)) return null;
+      return this.saveRig(true);
+    }
   }
 
   // ------------------------------------------------------------------ the curve
@@ -688,7 +742,7 @@ export class WeightEditor {
     fill($("paint-mode"), PAINT_MODES, ["off", "bone weights", "endpoint weights"]);
     fill($("paint-op"), PAINT_OPS);
     fill($("paint-falloff"), FALLOFFS);
-    fill($("endpoint-method"), ENDPOINT_METHODS);
+    fill($("endpoint-method"), this.endpointMethods());
     $("color-mode")?.addEventListener("change", () => this.setColorMode($("color-mode").value));
     $("paint-mode")?.addEventListener("change", () => this.setPaint({ mode: $("paint-mode").value }));
     $("paint-op")?.addEventListener("change", () => this.setPaint({ op: $("paint-op").value }));
@@ -703,11 +757,15 @@ export class WeightEditor {
     $("paint-undo")?.addEventListener("click", () => this.undo());
     $("paint-redo")?.addEventListener("click", () => this.redo());
     this.history.events?.on("history", () => this.updateButtons());
-    $("save-rig")?.addEventListener("click", () => this.uiCall(() => this.saveRig(), (r) => `saved ${r.path}`));
+    $("save-rig")?.addEventListener("click", () => this.uiCall(() => this.saveRigAsking(),
+      (r) => (r ? `saved ${r.path}` : "not saved")));
+    const progress = this.buildProgress($("endpoint-recompute"));
     $("endpoint-recompute")?.addEventListener("click", () => {
       const m = $("endpoint-method").value;
-      this.uiCall(() => this.recompute(this.settings.bone, m),
-                  () => `${this.names[this.settings.bone]}: endpoint weights by ${m}`, `computing (${m})...`);
+      progress.show(true);
+      this.uiCall(() => this.recompute(this.settings.bone, m, {}, (st) => progress.set(st)),
+                  () => `${this.names[this.settings.bone]}: endpoint weights by ${m}`, `computing (${m})...`)
+        .finally(() => progress.show(false));
     });
     $("bone")?.addEventListener("change", () => this.selectBone(Number($("bone").value) || 0, false));
     this.buildLockAndMirror($("paint-mode"));
@@ -727,6 +785,29 @@ export class WeightEditor {
     }
     this.showSettings();
     this.updateButtons();
+  }
+
+  /** A progress bar and a cancel button for the endpoint recompute, after `button`. */
+  buildProgress(button) {
+    const bar = document.createElement("progress"), cancel = document.createElement("button");
+    bar.id = "endpoint-progress";
+    bar.max = 1;
+    bar.value = 0;
+    cancel.id = "endpoint-cancel";
+    cancel.type = "button";
+    cancel.textContent = "cancel";
+    cancel.addEventListener("click", () => this.cancelRecompute().catch((err) => this.say(err.message, true)));
+    const show = (on) => { bar.hidden = cancel.hidden = !on; button && (button.disabled = on); };
+    show(false);
+    if (button && button.parentNode) button.parentNode.insertBefore(cancel, button.nextSibling);
+    if (button && button.parentNode) button.parentNode.insertBefore(bar, button.nextSibling);
+    return {
+      show,
+      set: (st) => {
+        if (st.total > 0) { bar.max = st.total; bar.value = st.done; } else bar.removeAttribute("value");
+        bar.title = `${st.stage || st.state}: ${st.done ?? 0} of ${st.total ?? "?"}`;
+      },
+    };
   }
 
   /** The lock (selected bone) and X-mirror checkboxes, after the paint menu's row. */
