@@ -577,28 +577,6 @@ export class WeightEditor {
     return { W: this.W.slice(), E: this.E.slice() };
   }
 
-  /**
-   * `count` dabs of the current brush along the rest mesh (a vertex every
-   * n / count apart), each timed as a stroke's dab (brush, W/E update, layout, upload);
-   * then undone. Resolves to the median milliseconds (stbs bench --viewer).
-   */
-  timeDabs(count = 50, mode = "bone") {
-    if (this.stroke) throw new Error("weights: a stroke is in progress");
-    const times = [];
-    this.beginStroke(-1);
-    this.stroke.mode = mode;
-    const step = Math.max(1, Math.floor(this.n / Math.max(1, count)));
-    for (let k = 0; k < count; k++) {
-      const v = (k * step) % this.n, R = this.rest;
-      const p = [R[3 * v], R[3 * v + 1], R[3 * v + 2]];
-      times.push(this.dab({ rest: p, posed: p, normal: [0, 0, 1] }, 0, 0));
-    }
-    this.endStroke();
-    times.sort((a, b) => a - b);
-    const m = times.length >> 1;
-    return this.undo().then(() => (times.length % 2 ? times[m] : 0.5 * (times[m - 1] + times[m])));
-  }
-
   // ------------------------------------------------------------------ the server
   /** The endpoint methods this rig's mesh can compute (the server's list). */
   endpointMethods() {
