@@ -145,6 +145,22 @@ def test_baked_frames_are_written_as_morph_targets(tmp_path, rig, clip):
     assert [r["errors"] for r in validate(path)] == [0]
 
 
+def test_bake_without_frames_skins_the_clip(tmp_path, rig, clip):
+    """write_gltf(path, rig, clip, bake=METHOD): the clip's frames by that method."""
+    write_gltf(tmp_path / "given.glb", rig, clip, bake="stbs-lbs",
+               frames=_frames(rig, clip, "stbs-lbs"))
+    write_gltf(tmp_path / "skinned.glb", rig, clip, bake="stbs-lbs")
+    a, b = GltfFile(tmp_path / "given.glb"), GltfFile(tmp_path / "skinned.glb")
+    ta, tb = a.doc["meshes"][0]["primitives"][0]["targets"], \
+        b.doc["meshes"][0]["primitives"][0]["targets"]
+    assert len(ta) == len(tb) == len(clip.sample_times())
+    for x, y in zip(ta, tb, strict=True):
+        np.testing.assert_allclose(read_accessor(b, y["POSITION"], "t"),
+                                   read_accessor(a, x["POSITION"], "t"), atol=1e-6)
+    with pytest.raises(ValueError, match="without frames= needs a clip"):
+        write_gltf(tmp_path / "x.glb", rig, bake="lbs", times=[0, 1])
+
+
 @pytest.fixture(scope="module")
 def tree():
     """A rig of a hierarchical skeleton: legs and arms hang off their parents (offset
@@ -235,8 +251,6 @@ def test_errors(tmp_path, rig, clip):
         write_gltf(tmp_path / "x.glb", rig, bake="lbs", frames=frames)
     with pytest.raises(ValueError, match="bake must be one of"):
         write_gltf(tmp_path / "x.glb", rig, clip, bake="fast", frames=frames)
-    with pytest.raises(ValueError, match="bake='lbs' needs frames="):
-        write_gltf(tmp_path / "x.glb", rig, clip, bake="lbs")
     with pytest.raises(ValueError, match="frames need bake="):
         write_gltf(tmp_path / "x.glb", rig, clip, frames=frames)
     with pytest.raises(ValueError, match=r"one mesh per time \(2\), got 3"):

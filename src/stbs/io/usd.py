@@ -36,6 +36,7 @@ from ..pose import local_transforms
 from ..rig.model import Rig
 from ..skinning.layout import four_heaviest
 from ._atomic import atomic_save
+from ._frames import skinned_frames
 from ._parse import suffix
 
 __all__ = ["write_usd", "USD_EXTENSIONS"]
@@ -78,8 +79,9 @@ def write_usd(path: str | os.PathLike, rig: Rig, clip: Clip | None = None, *,
         Written as the skeleton's ``SkelAnimation`` (rotations and posed starts: what
         linear or dual-quaternion skinning of rigid joints shows), sampled at its rate.
     bake : {"lbs", "dqs", "stbs-lbs", "stbs-dqs"}, optional
-        With ``clip`` and ``frames``: the method that computed ``frames``, written per
-        frame as ``/Baked``.
+        With ``clip``: the method that computed ``frames`` (or that skins the clip
+        at ``clip.sample_times()`` when ``frames`` is not given), written per frame as
+        ``/Baked``.
     skinning : {"lbs", "dqs"}
         The mesh's ``skel:skinningMethod``: ``classicLinear`` or ``dualQuaternion``.
     frames : sequence of (n, 3) float, optional
@@ -115,8 +117,7 @@ def _check_frames(rig: Rig, clip, bake, frames) -> list[np.ndarray] | None:
     if clip is None:
         raise ValueError("bake needs a clip: the animation to bake")
     if frames is None:
-        raise ValueError(f"bake={bake!r} needs frames=: the positions that method computes "
-                         f"at each time (stbs.bake.export skins a clip and writes them)")
+        frames = skinned_frames(rig, clip, clip.sample_times(), bake)
     k = len(clip.sample_times())
     if len(frames) != k:
         raise ValueError(f"frames must hold one mesh per sampled time ({k}), got {len(frames)}")

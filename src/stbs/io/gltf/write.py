@@ -43,6 +43,7 @@ from ...pose import local_transforms
 from ...rig.model import Rig
 from ...skinning.layout import four_heaviest
 from .._atomic import atomic_open
+from .._frames import skinned_frames
 from .._parse import suffix
 from .accessors import (
     ARRAY_BUFFER,
@@ -204,9 +205,10 @@ def write_gltf(path: str | os.PathLike, rig: Rig, clip: Clip | None = None,
         An animation of the rig's skeleton: written as joint rotations and
         translations (see the module docs); with ``frames``, the default of ``times``.
     bake : {"lbs", "dqs", "stbs-lbs", "stbs-dqs"}, optional
-        The method that computed ``frames``: they are written as morph targets played
-        by a ``weights`` animation (then the joints stay at rest).
-        :func:`stbs.bake.export` computes them and calls this.
+        The method that computed ``frames``, or that skins ``clip`` at ``times`` when
+        ``frames`` is not given: they are written as morph targets played by a
+        ``weights`` animation (then the joints stay at rest). :func:`stbs.bake.export`
+        is the pipeline that bakes (with its limits and progress) and calls this.
     frames : sequence of (n, 3) float, keyword-only
         With ``bake``: the deformed positions, one mesh per time.
     times : (k,) float, keyword-only, optional
@@ -215,8 +217,9 @@ def write_gltf(path: str | os.PathLike, rig: Rig, clip: Clip | None = None,
     Raises
     ------
     ValueError
-        A 2D rig, no triangles, a clip of another skeleton, ``bake`` naming no method or
-        without frames, frames of another shape or count, a path of another extension.
+        A 2D rig, no triangles, a clip of another skeleton, ``bake`` naming no method,
+        ``bake`` with neither frames nor clip, frames of another shape or count, a path
+        of another extension.
     """
     suffix(path, GLTF_EXTENSIONS, "write_gltf")
     if not isinstance(rig, Rig):
@@ -264,9 +267,6 @@ def _check_frames(rig: Rig, clip: Clip | None, bake, frames, times):
         what = "frames need bake=: the method that computed them" if bake is None else \
             f"bake must be one of {', '.join(SKINNING_METHODS)}, got {bake!r}"
         raise ValueError(what)
-    if frames is None:
-        raise ValueError(f"bake={bake!r} needs frames=: the positions that method computes "
-                         f"at each time (stbs.bake.export skins a clip and writes them)")
     if times is None:
         if clip is None:
             raise ValueError("bake needs a clip or times=: when the frames are")
@@ -274,6 +274,11 @@ def _check_frames(rig: Rig, clip: Clip | None, bake, frames, times):
     times = np.asarray(times, dtype=np.float64).reshape(-1)
     if times.size == 0 or not np.all(np.isfinite(times)) or np.any(np.diff(times) <= 0):
         raise ValueError(f"times must be finite and increasing, one per frame, got {times!r}")
+    if frames is None:
+        if clip is None:
+            raise ValueError(f"bake={bake!r} without frames= needs a clip: the animation "
+                             f"to bake")
+        frames = skinned_frames(rig, clip, times, bake)
     if len(frames) != times.size:
         raise ValueError(f"frames must hold one mesh per time ({times.size}), "
                          f"got {len(frames)}")
