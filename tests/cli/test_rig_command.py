@@ -321,3 +321,54 @@ def test_the_command_offers_what_the_pipeline_takes():
     assert cli_rig.BONE == stbs.rig.BONE_METHODS
     assert cli_rig.ENDPOINT == stbs.rig.ENDPOINT_METHODS
     assert cli_rig.DEFAULT_TOL == stbs.rig.DEFAULT_TOL
+    assert cli_rig.IMAGE_EXTENSIONS == stbs.rig.IMAGE_EXTENSIONS
+    assert cli_rig.OUTLINE_EXTENSIONS == stbs.rig.OUTLINE_EXTENSIONS
+    assert cli_rig.OUTLINE_TRIANGLES == stbs.rig.OUTLINE_TRIANGLES
+
+
+def test_keep_volume_stores_the_tetrahedra_in_the_rig(tmp_path, capsys):
+    from stbs.io import write_mesh, write_tgf
+    from stbs.rig import endpoint_methods
+    from surfaces import box
+
+    V, F = box([0, 0, 0], [2, 1, 1], 3)
+    write_mesh(tmp_path / "box.obj", V, F)
+    write_tgf(tmp_path / "box.tgf", [[0.2, 0.5, 0.5], [1.0, 0.5, 0.5], [1.8, 0.5, 0.5]],
+              [[0, 1], [1, 2]])
+    base = ["rig", str(tmp_path / "box.obj"), str(tmp_path / "box.tgf"), "--bone", "heat",
+            "--endpoint", "projection", "-o"]
+    assert main([*base, str(tmp_path / "plain.npz")]) == 0
+    assert "kept its volume" not in capsys.readouterr().out
+    assert main([*base, str(tmp_path / "kept.npz"), "--keep-volume", "--tets",
+                 "conforming"]) == 0
+    out = capsys.readouterr().out
+    plain, kept = stbs.load_rig(tmp_path / "plain.npz"), stbs.load_rig(tmp_path / "kept.npz")
+    assert plain.volume is None and "bbw" not in endpoint_methods(plain)
+    assert kept.volume is not None and "bbw" in endpoint_methods(kept)
+    assert f"kept its volume mesh of {len(kept.volume.V)} vertices" in out
+    np.testing.assert_array_equal(kept.volume.V[kept.volume.index], V)
+    np.testing.assert_array_equal(np.asarray(kept.W), np.asarray(plain.W))
+
+
+def test_the_pipeline_is_a_library_function_with_stages(tmp_path):
+    """stbs.rig.rig_from_files is what the command runs; its progress names each stage."""
+    from stbs.rig import rig_from_files, rig_from_picture
+
+    png, tgf = _bar_picture(tmp_path)
+    stages = []
+    with pytest.warns(UserWarning, match="meshed only inside it"):
+        rig = rig_from_files(png, tgf, clip_skeleton=True,
+                             progress=lambda s, d, t: stages.append(s) if t == 0 else None)
+    assert stages[:3] == ["read image", "read skeleton", "trace outline"]
+    assert "triangulate (bones inside)" in stages and stages[-1] == "endpoint weights (bbw)"
+    assert main(["rig", str(png), str(tgf), "-o", str(tmp_path / "b.npz"),
+                 "--clip-skeleton"]) == 0
+    cli = stbs.load_rig(tmp_path / "b.npz")
+    np.testing.assert_array_equal(cli.V, rig.V)
+    np.testing.assert_allclose(np.asarray(cli.E), np.asarray(rig.E), atol=1e-12)
+    np.testing.assert_array_equal(cli.texture, rig.texture)
+    # a picture as an array: no shape at this threshold is an error naming it
+    from stbs.rig import read_image
+
+    with pytest.raises(ValueError, match="image: no shape found .nothing above threshold 1"):
+        rig_from_picture(read_image(png), rig.skeleton, threshold=1.0)

@@ -388,7 +388,8 @@ def test_progress_must_be_callable(u_case):
         solver.solve(b, bc, progress=3)
     seen = []
     solver.solve(b, bc, partition_of_unity=True, progress=lambda d, t: seen.append((d, t)))
-    assert seen == [(3, 3)]
+    # every round of the coupled solve reports (nothing done yet), then all three
+    assert seen[-1] == (3, 3) and set(seen[:-1]) == {(0, 3)} and len(seen) >= 3
 
 
 def test_solve_chunk_rule_and_small_chunks_give_the_same_answer(u_case, monkeypatch):
@@ -422,7 +423,9 @@ def test_bone_weights_heat_is_bone_heat_on_a_surface():
     seen = []
     W = bone_weights(V, sk, method="heat", F=F, progress=lambda d, t: seen.append((d, t)))
     np.testing.assert_array_equal(W, bone_heat(V, F, sk))
-    assert seen == [(2, 2)]
+    # a visibility round per rank of nearness (two bones: at most two), then the solve
+    assert seen[0] == (0, 3) and seen[-1] == (3, 3) and seen == sorted(seen)
+    assert len(seen) in (2, 3)
     with pytest.raises(ValueError, match=r"method='heat' needs the 3D triangle surface F"):
         bone_weights(V, sk, method="heat")
     T = np.array([[0, 1, 2, 3]])

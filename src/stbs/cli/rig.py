@@ -40,7 +40,10 @@ A 2D shape may also come as an outline, and the rig then keeps stbs's triangle m
 a Triangle .poly file, or an image (paper §4, Fig. 12) whose shape, alpha above
 --threshold (or luma; --invert for dark on light), is traced. Image coordinates are
 pixels with y up: pixel (row r, column c) of an H-row image is at (c, H - 1 - r), and
-the skeleton is given in them."""
+the skeleton is given in them.
+--keep-volume keeps the volume mesh the weights were solved on in the rig file (a 3D
+surface's tetrahedra, or a 2D mesh's re-triangulation with the bones inside), so that
+BBW endpoint weights can be solved again later, e.g. in the viewer."""
 EPILOG = f"""examples:
   {EXAMPLE}
   stbs rig woody.obj woody.tgf -o woody.npz            # 2D: bbw + bbw endpoint weights
@@ -117,6 +120,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--invert", action="store_true",
                    help="image MESH: the shape is where the value is below --threshold (a "
                         "dark shape on a light background)")
+    p.add_argument("--keep-volume", action="store_true",
+                   help="keep the volume mesh the weights were solved on in the rig (a 3D "
+                        "surface's tetrahedra, built even for --bone heat with --endpoint "
+                        "heat/projection/idw; a 2D mesh's re-triangulation), so that BBW "
+                        "endpoint weights can be solved again later (the viewer)")
     add_tol_argument(p)
 
 
@@ -191,6 +199,11 @@ class _Stages:
 
 #: --tets values that mesh the surface (the others name a file): build_rig's ``volume``.
 TETS_MESHERS = {"auto": "auto", "winding": "winding", "conforming": "conforming"}
+#: MESH files that are a 2D shape's outline (stbs.rig.pipeline's, repeated so that
+#: building the parser imports nothing heavy; a test checks they agree).
+IMAGE_EXTENSIONS = (".png", ".jpg", ".jpeg", ".bmp", ".gif", ".tif", ".tiff", ".webp")
+OUTLINE_EXTENSIONS = (".poly", *IMAGE_EXTENSIONS)
+OUTLINE_TRIANGLES = 4000
 
 
 def check_tet_size(tet_size: float | None, tets: str) -> float | None:
@@ -207,17 +220,11 @@ def check_tet_size(tet_size: float | None, tets: str) -> float | None:
     return float(tet_size)
 
 
-def build(st: _Stages, V, F, T, sk, *, bone: str, endpoint: str, tets: str, mesh_name: str,
-          tol: float = DEFAULT_TOL, clip_skeleton: bool = False, meshed: bool = False, W=None,
-          tet_size: float | None = None):
-    """:func:`stbs.build_rig` for the command line: ``--tets FILE`` read and checked, the
-    stages timed; returns the rig (weights restricted to ``V``)."""
-    from ..io import read_mesh
-    from ..rig import Rig, build_rig
+def check_methods(V, F, T, *, bone: str, endpoint: str, tets: str, mesh_name: str,
+                  clip_skeleton: bool = False, W=None) -> None:
+    """The flags checked against the mesh, before any work (one-line errors)."""
     from ._errors import CommandError
 
-    n = len(V)
-    tet_size = check_tet_size(tet_size, tets)
     meshes = T is None and tets in TETS_MESHERS and (
         (bone == "bbw" and W is None) or (V.shape[1] == 3 and endpoint in ("bbw", "bbw-joints")))
     if clip_skeleton and not meshes:
@@ -234,20 +241,31 @@ def build(st: _Stages, V, F, T, sk, *, bone: str, endpoint: str, tets: str, mesh
         raise CommandError(f"{mesh_name!r}: a 2D rig needs triangles to take the outline from")
     if bone == "bbw" and W is None and V.shape[1] == 3 and T is None and F is None:
         raise CommandError(f"{mesh_name!r}: a 3D rig needs a triangle surface or tetrahedra")
+
+
+def build(st: _Stages, V, F, T, sk, *, bone: str, endpoint: str, tets: str, mesh_name: str,
+          tol: float = DEFAULT_TOL, clip_skeleton: bool = False, meshed: bool = False, W=None,
+          tet_size: float | None = None, keep_volume: bool = False):
+    """:func:`stbs.rig.rig_from_mesh` for the command line: the flags checked,
+    ``--tets FILE`` read, the stages timed; returns the rig (weights restricted to ``V``)."""
+    from ..io import read_mesh
+    from ..rig import rig_from_mesh
+    from ._errors import CommandError
+
+    tet_size = check_tet_size(tet_size, tets)
+    check_methods(V, F, T, bone=bone, endpoint=endpoint, tets=tets, mesh_name=mesh_name,
+                  clip_skeleton=clip_skeleton, W=W)
+    volume = TETS_MESHERS.get(tets, "auto")
     if tets not in TETS_MESHERS and W is None and bone == "bbw":
         tm = st.run("read tets", read_mesh, tets)
+        n = len(V)
         if tm.T is None or len(tm.V) < n or not (tm.V[:n] == V).all():
             raise CommandError(f"--tets {tets!r}: expected tetrahedra whose first "
                                f"{n} vertices are the surface {mesh_name!r}'s, in order")
-        first = "projection" if endpoint == "heat" else endpoint    # heat: on the surface
-        full = st.pipeline(build_rig, tm.V, sk, T=tm.T, bone=bone, endpoint=first, tol=tol)
-        W, E = full.W[:n], full.E[:n]
-        if endpoint == "heat":
-            E = st.pipeline(build_rig, V, sk, F=F, W=W, endpoint="heat").E
-        return Rig(V=V, F=F, skeleton=sk, W=W, E=E, meta={"bone": bone, "endpoint": endpoint})
-    return st.pipeline(build_rig, V, sk, F=F, T=T, W=W, bone=bone, endpoint=endpoint, tol=tol,
-                       clip_skeleton=clip_skeleton, remesh=not meshed,
-                       volume=TETS_MESHERS.get(tets, "auto"), volume_size=tet_size)
+        volume = (tm.V, tm.T)
+    return st.pipeline(rig_from_mesh, V, sk, F=F, T=T, W=W, bone=bone, endpoint=endpoint,
+                       tol=tol, clip_skeleton=clip_skeleton, remesh=not meshed, tets=volume,
+                       tet_size=tet_size, keep_volume=keep_volume)
 
 
 def check_output(path: str, *, gltf: bool = False):
@@ -265,56 +283,6 @@ def check_output(path: str, *, gltf: bool = False):
     return out
 
 
-#: MESH files that are a 2D shape's outline rather than a mesh: traced or read, then
-#: triangulated with the bones inside; the rig keeps that triangle mesh.
-IMAGE_EXTENSIONS = (".png", ".jpg", ".jpeg", ".bmp", ".gif", ".tif", ".tiff", ".webp")
-OUTLINE_EXTENSIONS = (".poly", *IMAGE_EXTENSIONS)
-#: Triangles an outline is meshed into by default (--max-area = area / this).
-OUTLINE_TRIANGLES = 4000
-
-
-def read_image(path: str):
-    """An image file as an array (H, W[, C]) for :func:`stbs.meshing.outline_from_image`."""
-    import numpy as np
-
-    from .._optional import require
-    from ._errors import CommandError
-
-    Image = require("PIL.Image", f"reading the image {path!r}")
-    try:
-        with Image.open(path) as im:
-            if im.mode not in ("L", "LA", "RGB", "RGBA", "1"):
-                im = im.convert("RGBA" if "A" in im.getbands() else "RGB")
-            return np.asarray(im)
-    except FileNotFoundError:
-        raise CommandError(f"{path!r}: image file not found") from None
-    except OSError as exc:
-        raise CommandError(f"{path!r}: not a readable image ({exc})") from None
-
-
-def read_outline(st: _Stages, path: str, *, threshold: float, invert: bool) -> list:
-    """The polygons of a ``.poly`` file, or of the shape traced in an image."""
-    from ..io import read_polygons
-
-    if path.lower().endswith(".poly"):
-        return st.run("read polygons", read_polygons, path)
-    image = st.run("read image", read_image, path)
-    return trace_image(st, path, image, threshold=threshold, invert=invert)
-
-
-def trace_image(st: _Stages, path: str, image, *, threshold: float, invert: bool) -> list:
-    """The polygons of the shape traced in an image array (pixel units, y up)."""
-    from ..meshing import outline_from_image
-    from ._errors import CommandError
-
-    polygons = st.run("trace outline", outline_from_image, image, threshold=threshold,
-                      invert=invert)
-    if not polygons:
-        raise CommandError(f"{path!r}: no shape found (nothing "
-                           f"{'below' if invert else 'above'} --threshold {threshold:g})")
-    return polygons
-
-
 def requires(args: argparse.Namespace) -> list[str]:
     """Optional modules this run needs: Pillow for an image MESH."""
     return ["PIL"] if args.mesh.lower().endswith(IMAGE_EXTENSIONS) else []
@@ -323,66 +291,25 @@ def requires(args: argparse.Namespace) -> list[str]:
 def rig_from_files(st: _Stages, mesh: str, skeleton: str, *, bone: str, endpoint: str,
                    tets: str, tol: float, clip_skeleton: bool, threshold: float = 0.5,
                    invert: bool = False, max_area: float | None = None,
-                   tet_size: float | None = None):
-    """MESH (a mesh, a ``.poly`` outline or a picture) and SKELETON files -> a rig."""
-    from ..geometry import polygons_area
+                   tet_size: float | None = None, keep_volume: bool = False):
+    """MESH (a mesh, a ``.poly`` outline or a picture) and SKELETON files -> a rig
+    (:func:`stbs.rig.rig_from_files`), the flags checked and the stages timed."""
     from ..io import read_mesh, read_skeleton
-    from ..meshing import triangulate_2d
+    from ..rig import rig_from_files as from_files
     from ._errors import CommandError
 
-    outline = mesh.lower().endswith(OUTLINE_EXTENSIONS)
-    if outline:
+    if mesh.lower().endswith(OUTLINE_EXTENSIONS):
         if bone != "bbw":
             raise CommandError(f"--bone {bone} needs a 3D surface; an outline "
                                f"({mesh!r}) is rigged with --bone bbw")
-        image = None
-        if mesh.lower().endswith(IMAGE_EXTENSIONS):
-            image = st.run("read image", read_image, mesh)
-            polygons = trace_image(st, mesh, image, threshold=threshold, invert=invert)
-        else:
-            polygons = read_outline(st, mesh, threshold=threshold, invert=invert)
-        sk = st.run("read skeleton", read_skeleton, skeleton, dim=2)
-        if max_area is None:    # about OUTLINE_TRIANGLES triangles: a smooth field for BBW
-            max_area = max(polygons_area(polygons), 1e-300) / OUTLINE_TRIANGLES
-        tri = st.run("triangulate (bones inside)", triangulate_2d, polygons, sk,
-                     max_area=max_area, clip_skeleton=clip_skeleton)
-        V, F, T = tri.V, tri.F, None
-    else:
-        m = st.run("read mesh", read_mesh, mesh)
-        V, F, T = m.V, m.F, m.T
-        sk = st.run("read skeleton", read_skeleton, skeleton, dim=V.shape[1])
-    rig = build(st, V, F, T, sk, bone=bone, endpoint=endpoint, tets=tets, mesh_name=mesh,
-                tol=tol, clip_skeleton=clip_skeleton and not outline, meshed=outline,
-                tet_size=tet_size)
-    if outline and image is not None:
-        texture = rgba(image)
-        rig = rig.replace(texture=texture, UV=picture_uv(rig.V, texture.shape))
-    return rig
-
-
-def rgba(image):
-    """An image array (H, W), (H, W, 2|3|4), bool or uint8 -> (H, W, 4) uint8 RGBA."""
-    import numpy as np
-
-    a = np.asarray(image)
-    if a.dtype == bool:
-        a = a.astype(np.uint8) * 255
-    a = a.astype(np.uint8, copy=False)
-    if a.ndim == 2:
-        a = a[:, :, None]
-    c = a.shape[2]
-    rgb = np.repeat(a[:, :, :1], 3, axis=2) if c in (1, 2) else a[:, :, :3]
-    alpha = a[:, :, -1:] if c in (2, 4) else np.full(a.shape[:2] + (1,), 255, np.uint8)
-    return np.ascontiguousarray(np.concatenate([rgb, alpha], axis=2))
-
-
-def picture_uv(V, shape):
-    """Texture coordinates of points in pixel units with y up (pixel (row r, column c) of
-    an H-row image at (c, H - 1 - r)): u = (x + 1/2) / W, v = (y + 1/2) / H, in [0, 1]."""
-    import numpy as np
-
-    h, w = shape[:2]
-    return np.clip((np.asarray(V, dtype=float) + 0.5) / np.array([w, h], dtype=float), 0.0, 1.0)
+        return st.pipeline(from_files, mesh, skeleton, bone=bone, endpoint=endpoint, tol=tol,
+                           clip_skeleton=clip_skeleton, threshold=threshold, invert=invert,
+                           max_area=max_area)
+    m = st.run("read mesh", read_mesh, mesh)
+    sk = st.run("read skeleton", read_skeleton, skeleton, dim=m.V.shape[1])
+    return build(st, m.V, m.F, m.T, sk, bone=bone, endpoint=endpoint, tets=tets,
+                 mesh_name=mesh, tol=tol, clip_skeleton=clip_skeleton, tet_size=tet_size,
+                 keep_volume=keep_volume)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -405,9 +332,12 @@ def run(args: argparse.Namespace) -> int:
                          tets=args.tets, tol=tol, clip_skeleton=args.clip_skeleton,
                          tet_size=args.tet_size,
                          threshold=0.5 if args.threshold is None else args.threshold,
-                         invert=args.invert, max_area=args.max_area)
+                         invert=args.invert, max_area=args.max_area,
+                         keep_volume=args.keep_volume)
     st.run("write rig", save_rig, out, rig)
     print(st.summary(), file=sys.stderr)
+    kept = "" if rig.volume is None else (f"; kept its volume mesh of "
+                                          f"{len(rig.volume.V)} vertices")
     print(f"wrote {out}: {len(rig.V)} vertices, {rig.skeleton.n_bones} bones ({args.bone} bone "
-          f"weights, {args.endpoint} endpoint weights)")
+          f"weights, {args.endpoint} endpoint weights{kept})")
     return 0

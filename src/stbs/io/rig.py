@@ -27,6 +27,9 @@ key                        shape, dtype      required  meaning
 ``meta_json``              (), unicode       no        JSON object: free metadata
 ``texture``                (H, W, c) uint8   no [2]_   a picture on the mesh, RGB(A), row 0 on top
 ``UV``                     (n, 2) float64    no [2]_   texture coordinates, OpenGL convention
+``volume_V``               (m, d) float64    no [4]_   the kept volume mesh's vertices
+``volume_T``               (t, d+1) int64    no [4]_   its tetrahedra (3D) or triangles (2D)
+``volume_M_data``, ...     CSR as ``W``      no [4]_   (n, m): rig vertices from the volume's
 =========================  ================  ========  ======================================
 
 .. [1] Exactly one of the two forms of ``W`` (dense ``W`` or the four ``W_*``
@@ -36,6 +39,12 @@ key                        shape, dtype      required  meaning
 .. [3] Without ``P`` the parents are inferred from shared joints (every child starts
    at its parent's end joint); with it a child may hang anywhere on its parent (an
    offset child, as glTF, FBX and BVH hierarchies have).
+.. [4] ``volume_V``, ``volume_T`` and the four ``volume_M_*`` keys (``data``,
+   ``indices``, ``indptr``, ``shape``, sparse CSR as for ``W``) come together: the volume
+   mesh the weights were solved on, kept with the rig (:class:`stbs.rig.Volume`,
+   ``stbs rig --keep-volume``). Row k of ``volume_M`` gives rig vertex k as a
+   combination of volume vertices (barycentric coordinates, or a single 1 where the rig
+   vertex is a volume vertex). Readers that predate them ignore all six.
 
 An absent optional key means None (no ``F``, no ``T``, default names, no
 ``E``, empty metadata). Readers check the version first and ignore keys not
@@ -53,7 +62,7 @@ from typing import Any
 import numpy as np
 import scipy.sparse as sp
 
-from ..rig.model import Rig
+from ..rig.model import Rig, Volume
 from ._atomic import atomic_open
 from ._npz import Budget
 from ._parse import input_path, suffix
@@ -119,6 +128,10 @@ def save_rig(path: str | os.PathLike, rig: Rig) -> None:
     if rig.texture is not None:
         out["texture"] = rig.texture
         out["UV"] = np.asarray(rig.UV, dtype=np.float64)
+    if rig.volume is not None:
+        out["volume_V"] = np.asarray(rig.volume.V, dtype=np.float64)
+        out["volume_T"] = np.asarray(rig.volume.T, dtype=np.int64)
+        _put_weights(out, "volume_M", rig.volume.M)
     if rig.meta:
         try:
             text = json.dumps(rig.meta, allow_nan=False)
@@ -221,6 +234,16 @@ class _Arrays:
 
 
 def _load(p, z: _Arrays, keys: set) -> Rig:
+    _check_version(p, z, keys)
+    arrays = _mesh_arrays(p, z, keys)
+    W = _get_weights(p, z, keys, "W", required=True)
+    E = _get_weights(p, z, keys, "E", required=False)
+    return Rig(V=arrays["V"], F=arrays.get("F"), T=arrays.get("T"), C=arrays["C"],
+               BE=arrays["BE"], P=arrays.get("P"), names=_names(p, z, keys), W=W, E=E,
+               meta=_meta(p, z, keys), volume=_volume(p, z, keys), **_picture(p, z, keys))
+
+
+def _check_version(p, z: _Arrays, keys: set) -> None:
     if "stbs_rig_version" not in keys:
         raise FormatError(p, "a stbs rig with key 'stbs_rig_version'",
                           f"keys {sorted(keys)}")
@@ -233,34 +256,48 @@ def _load(p, z: _Arrays, keys: set) -> Rig:
     for k in ("V", "C", "BE"):
         if k not in keys:
             raise FormatError(p, f"required key '{k}'", f"keys {sorted(keys)}")
-    arrays: dict[str, Any] = {}
-    for k, kinds in (("V", "f"), ("C", "f"), ("BE", "iu"), ("P", "iu"), ("F", "iu"),
-                     ("T", "iu")):
-        if k in keys:
-            a = z[k]
-            if a.dtype.kind not in kinds:
-                want = "float" if kinds == "f" else "integer"
-                raise FormatError(p, f"'{k}' of {want} dtype", f"dtype {a.dtype}")
-            arrays[k] = a
-    names = None
-    if "names" in keys:
-        a = z["names"]
-        if a.dtype.kind != "U" or a.ndim != 1:
-            raise FormatError(p, "'names' as a 1-D unicode array",
-                              f"dtype {a.dtype}, shape {a.shape}")
-        names = [str(s) for s in a.tolist()]
-    meta: dict = {}
-    if "meta_json" in keys:
-        a = z["meta_json"]
-        try:
-            meta = json.loads(str(a[()])) if a.dtype.kind == "U" and a.shape == () else None
-        except json.JSONDecodeError:
-            meta = None
-        if not isinstance(meta, dict):
-            raise FormatError(p, "'meta_json' as the text of a JSON object",
-                              f"dtype {a.dtype}, shape {a.shape}")
-    W = _get_weights(p, z, keys, "W", required=True)
-    E = _get_weights(p, z, keys, "E", required=False)
+
+
+def _typed(p, z: _Arrays, k: str, kinds: str) -> np.ndarray:
+    """``z[k]`` of one of the dtype ``kinds`` ("f": float, "iu": integer)."""
+    a = z[k]
+    if a.dtype.kind not in kinds:
+        want = "float" if kinds == "f" else "integer"
+        raise FormatError(p, f"'{k}' of {want} dtype", f"dtype {a.dtype}")
+    return a
+
+
+def _mesh_arrays(p, z: _Arrays, keys: set) -> dict[str, Any]:
+    return {k: _typed(p, z, k, kinds) for k, kinds in (
+        ("V", "f"), ("C", "f"), ("BE", "iu"), ("P", "iu"), ("F", "iu"), ("T", "iu"))
+        if k in keys}
+
+
+def _names(p, z: _Arrays, keys: set) -> list[str] | None:
+    if "names" not in keys:
+        return None
+    a = z["names"]
+    if a.dtype.kind != "U" or a.ndim != 1:
+        raise FormatError(p, "'names' as a 1-D unicode array",
+                          f"dtype {a.dtype}, shape {a.shape}")
+    return [str(s) for s in a.tolist()]
+
+
+def _meta(p, z: _Arrays, keys: set) -> dict:
+    if "meta_json" not in keys:
+        return {}
+    a = z["meta_json"]
+    try:
+        meta = json.loads(str(a[()])) if a.dtype.kind == "U" and a.shape == () else None
+    except json.JSONDecodeError:
+        meta = None
+    if not isinstance(meta, dict):
+        raise FormatError(p, "'meta_json' as the text of a JSON object",
+                          f"dtype {a.dtype}, shape {a.shape}")
+    return meta
+
+
+def _picture(p, z: _Arrays, keys: set) -> dict[str, np.ndarray]:
     picture = {}
     for k, kinds, want in (("texture", "u", "uint8"), ("UV", "f", "float")):
         if k in keys:
@@ -268,6 +305,20 @@ def _load(p, z: _Arrays, keys: set) -> Rig:
             if a.dtype.kind not in kinds or (k == "texture" and a.dtype != np.uint8):
                 raise FormatError(p, f"'{k}' of {want} dtype", f"dtype {a.dtype}")
             picture[k] = a
-    return Rig(V=arrays["V"], F=arrays.get("F"), T=arrays.get("T"), C=arrays["C"],
-               BE=arrays["BE"], P=arrays.get("P"), names=names, W=W, E=E, meta=meta,
-               **picture)
+    return picture
+
+
+_VOLUME_KEYS = ("volume_V", "volume_T", *(f"volume_M_{s}" for s in _SPARSE_PARTS))
+
+
+def _volume(p, z: _Arrays, keys: set) -> Volume | None:
+    """The kept volume mesh (all six keys), or None (none of them)."""
+    have = [k for k in _VOLUME_KEYS if k in keys]
+    if not have:
+        return None
+    if len(have) != len(_VOLUME_KEYS):
+        raise FormatError(p, f"all the volume keys {list(_VOLUME_KEYS)} or none",
+                          f"{sorted(set(_VOLUME_KEYS) - set(have))} missing")
+    M = _get_weights(p, z, keys, "volume_M", required=True)
+    # Rig checks the shapes against the rig's; a ValueError there names the key
+    return Volume(V=_typed(p, z, "volume_V", "f"), T=_typed(p, z, "volume_T", "iu"), M=M)

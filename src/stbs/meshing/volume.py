@@ -171,7 +171,8 @@ class VolumeMesh:
 
 # --------------------------------------------------------------------------------------
 def volume_mesh(V, F, sk: Skeleton, *, size: float | None = None,
-                vertices: int = DEFAULT_VERTICES, refine: int = MAX_REFINE) -> VolumeMesh:
+                vertices: int = DEFAULT_VERTICES, refine: int = MAX_REFINE,
+                progress=None) -> VolumeMesh:
     """Tetrahedral mesh of the inside of any triangle surface, skeleton points inside.
 
     Parameters
@@ -193,6 +194,10 @@ def volume_mesh(V, F, sk: Skeleton, *, size: float | None = None,
     refine : int, keyword-only
         Most times the spacing is halved where the skeleton's bones lie close together
         (hands, face) or the shape is thin (fingers, ears), 0 for a uniform mesh.
+    progress : callable, optional, keyword-only
+        ``progress(done, total)`` as each of the ``total`` steps (size, grading,
+        samples, lattice, Delaunay, tetrahedra inside) starts, and ``(total, total)``
+        at the end. Raise any exception from it to cancel: it propagates.
 
     Returns
     -------
@@ -234,6 +239,9 @@ def volume_mesh(V, F, sk: Skeleton, *, size: float | None = None,
         raise ValueError(f"refine must be an int in 0..5, got {refine!r}")
     from ..geometry import WindingTree
 
+    steps = 6
+    say = progress or (lambda done, total: None)
+    say(0, steps)
     F = _oriented(V, F)
     wind = WindingTree(V, F)
     lo, hi = V[np.unique(F)].min(axis=0), V[np.unique(F)].max(axis=0)
@@ -250,7 +258,9 @@ def volume_mesh(V, F, sk: Skeleton, *, size: float | None = None,
 
     # 1. the grading: cubes of side h over the shape, each refined 2^level times where
     # the skeleton is dense (hands, face) or the shape thin (fingers, ears)
+    say(1, steps)
     grid, _, _ = _graded(wind, sk, lo, hi, h, int(refine))
+    say(2, steps)
     # 2. the skeleton's points, spaced like the cubes they are in; those inside kept
     skp = sample_skeleton(sk, h, _counts(sk.lengths, _bone_spacing(sk, grid)))
     inside_sk = wind(skp.X) > INSIDE
@@ -272,6 +282,7 @@ def volume_mesh(V, F, sk: Skeleton, *, size: float | None = None,
     S = S[sk_tree.query(S)[0] > grid.spacing(S) / 3]
     # 4. the cubes' body-centred cubic lattices inside, away from the surface and the
     # skeleton (by half their spacing)
+    say(3, steps)
     L = grid.lattice()
     hL = grid.spacing(L)
     far = sk_tree.query(L, distance_upper_bound=h)[0] > 0.5 * hL
@@ -284,7 +295,9 @@ def volume_mesh(V, F, sk: Skeleton, *, size: float | None = None,
     X = np.vstack([K, S, L])
 
     # 5. Delaunay, and the tetrahedra inside
+    say(4, steps)
     T = Delaunay(X).simplices.astype(np.int64)
+    say(5, steps)
     w = wind(X[T].mean(axis=1))
     keep = (w > INSIDE) & ~_flat(X, T)
     # Slivers (nearly flat tetrahedra, common in Delaunay meshes of surface samples)
@@ -335,6 +348,7 @@ def volume_mesh(V, F, sk: Skeleton, *, size: float | None = None,
     kind = np.repeat(np.array([0, 1, 2], dtype=np.int8), [nk, ns, X.shape[0] - nk - ns])[used]
     for a in (Xm, Tm, on_bone, t_bone, joint_vertex, kind):
         a.setflags(write=False)
+    say(steps, steps)
     return VolumeMesh(V=Xm, T=Tm, on_bone=on_bone, t_bone=t_bone,
                       joint_vertex=joint_vertex, size=float(h), kind=kind,
                       bones_outside=outside)

@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
+from dataclasses import dataclass
 from typing import Literal
 
 import numpy as np
@@ -27,9 +28,10 @@ from .. import _checks
 from ..geometry import boundary_faces
 from ..methods import BONE_METHODS, ENDPOINT_METHODS
 from ..skeleton import Skeleton
-from .model import Rig, _weights
+from .model import Rig, Volume, _weights
 
-__all__ = ["build_rig", "BONE_METHODS", "ENDPOINT_METHODS", "VOLUME_METHODS", "DEFAULT_TOL"]
+__all__ = ["build_rig", "BONE_METHODS", "ENDPOINT_METHODS", "VOLUME_METHODS", "DEFAULT_TOL",
+           "Progress"]
 
 #: Volume meshes of a 3D surface for BBW (:func:`build_rig`'s ``volume``).
 VOLUME_METHODS = ("auto", "winding", "conforming")
@@ -43,7 +45,8 @@ AUTO_CONFORMING_MAX = 10_000
 DEFAULT_TOL = 1e-6
 
 #: ``progress(stage, done, total)``: a stage starts with ``(stage, 0, 0)``; long stages
-#: then report ``done`` of ``total`` units (weight functions).
+#: then report ``done`` of ``total`` units (weight functions, bones, meshing steps), at
+#: least once per solver round or bone. An exception raised from it cancels the work.
 Progress = Callable[[str, int, int], None]
 
 
@@ -132,12 +135,67 @@ def _to_volume(vm, V, W, interp, k: int = 8):
     return np.where(s > 0, Wv / np.where(s > 0, s, 1.0), 1.0 / Wd.shape[1])
 
 
+@dataclass
+class _Job:
+    """:func:`build_rig`'s checked arguments, what they call for, and the stage reporter."""
+
+    V: np.ndarray
+    sk: Skeleton
+    F: np.ndarray | None
+    T: np.ndarray | None
+    W: object
+    bone: str
+    endpoint: str
+    tol: float
+    clip_skeleton: bool
+    remesh: bool
+    volume: str
+    volume_size: float | None
+    keep_volume: bool
+    say: Callable[[str, int, int], None]
+
+    @property
+    def n(self) -> int:
+        return int(self.V.shape[0])
+
+    @property
+    def d(self) -> int:
+        return int(self.V.shape[1])
+
+    @property
+    def heat_on(self) -> bool:
+        """Bone heat is computed (not given)."""
+        return self.bone == "heat" and self.W is None
+
+    @property
+    def bbw_endpoint(self) -> bool:
+        return self.endpoint in ("bbw", "bbw-joints")
+
+    @property
+    def needs_volume(self) -> bool:
+        """A 3D surface's volume mesh is built: BBW needs it, or it is to be kept."""
+        bbw_bone = self.bone == "bbw" and self.W is None
+        return self.d == 3 and self.T is None and self.F is not None and (
+            self.bbw_endpoint or bbw_bone or self.keep_volume)
+
+    @property
+    def remeshes_2d(self) -> bool:
+        return self.d == 2 and self.W is None and self.bone == "bbw" and self.remesh
+
+    def stage(self, label: str, bar: bool = False):
+        """Report a stage's start; ``bar``: return its ``progress(done, total)``."""
+        self.say(label, 0, 0)
+        if bar:
+            return lambda done, total: self.say(label, done, total)
+        return None
+
+
 def build_rig(V, sk: Skeleton, *, F=None, T=None, W=None,
               bone: Literal["bbw", "heat"] = "bbw",
               endpoint: Literal["bbw", "bbw-joints", "heat", "projection", "idw"] = "bbw",
               tol: float = DEFAULT_TOL, clip_skeleton: bool = False, remesh: bool = True,
               volume: Literal["auto", "winding", "conforming"] = "auto",
-              volume_size: float | None = None,
+              volume_size: float | None = None, keep_volume: bool = False,
               progress: Progress | None = None) -> Rig:
     """A complete rig (bone and endpoint weights) of a mesh and skeleton.
 
@@ -188,15 +246,26 @@ def build_rig(V, sk: Skeleton, *, F=None, T=None, W=None,
     volume_size : float, optional
         The winding-number volume's target edge length, in the mesh's units (None:
         about :data:`stbs.meshing.volume.DEFAULT_VERTICES` vertices).
+    keep_volume : bool
+        Keep the mesh the weights were solved on as ``rig.volume`` (a
+        :class:`stbs.rig.Volume`, saved in the rig file), so that BBW endpoint weights
+        can be solved again later (:func:`stbs.rig.rig_endpoint_weights`): a 3D
+        surface's volume mesh (then built by ``volume`` even when the methods chosen
+        need none) or a 2D shape's re-triangulation with the bones inside. None when
+        the rig's own triangles (2D) or tetrahedra serve.
     progress : callable, optional
         ``progress(stage, done, total)``: each stage starts with ``(stage, 0, 0)``; the
-        weight solves then report how many of their functions are done.
+        weight solves and meshing then report ``done`` of ``total`` units, at least once
+        per solver round or bone. Raise any exception from it to cancel: the work stops
+        at its next report and the exception propagates (``progress`` is not called
+        again).
 
     Returns
     -------
     Rig
         ``V``, ``F`` and ``T`` as given (``T`` only when given), the skeleton ``sk``,
-        ``W`` and ``E`` (n, b), and ``meta = {"bone": ..., "endpoint": ...}``.
+        ``W`` and ``E`` (n, b), ``meta = {"bone": ..., "endpoint": ...}`` and, with
+        ``keep_volume``, ``volume``.
 
     Raises
     ------
@@ -214,21 +283,33 @@ def build_rig(V, sk: Skeleton, *, F=None, T=None, W=None,
     >>> rig.W.shape == (len(V), sk.n_bones), bool(abs(rig.W.sum(axis=1) - 1).max() < 1e-9)
     (True, True)
     """
-    from ..meshing import tetrahedralize, triangulate_2d
-    from ..weights import bone_heat, bone_weights, endpoint_weights
+    job = _job(V, sk, F=F, T=T, W=W, bone=bone, endpoint=endpoint, tol=tol,
+               clip_skeleton=clip_skeleton, remesh=remesh, volume=volume,
+               volume_size=volume_size, keep_volume=keep_volume, progress=progress)
+    W_surface = _surface_weights(job)
+    if job.needs_volume:
+        return _volume_rig(job, W_surface)
+    kept = None
+    if W_surface is not None:
+        Vm, Fm, Tm, Wm = job.V, job.F, job.T, W_surface
+    else:
+        Vm, Fm, Tm, kept = _solve_mesh(job)
+        Wm = _bbw_bone_weights(job, Vm, Fm, Tm)
+    W_out = W_surface if W_surface is not None else Wm[:job.n]
+    E = _endpoints(job, Vm, Fm, Tm, Wm, W_out, np.arange(job.n))
+    return _rig(job, W_out, E, kept)
 
+
+def _job(V, sk, *, F, T, W, bone, endpoint, tol, clip_skeleton, remesh, volume,
+         volume_size, keep_volume, progress) -> _Job:
+    """The arguments checked, before any work."""
     V = _checks.skeleton(sk, V)
     n, d = V.shape
     _choice("bone", bone, BONE_METHODS)
     _choice("endpoint", endpoint, ENDPOINT_METHODS)
     _choice("volume", volume, VOLUME_METHODS)
-    tol = float(tol)
-    if not (math.isfinite(tol) and tol > 0):
-        raise ValueError(f"tol must be a positive number, got {tol!r}")
-    if volume_size is not None:
-        volume_size = float(volume_size)
-        if not (math.isfinite(volume_size) and volume_size > 0):
-            raise ValueError(f"volume_size must be a positive number, got {volume_size!r}")
+    tol = _positive("tol", tol)
+    volume_size = None if volume_size is None else _positive("volume_size", volume_size)
     F = None if F is None else _checks.index_array("F", F, ndim=2, shape=(None, 3))
     T = None if T is None else _checks.index_array("T", T, ndim=2, shape=(None, 4))
     for name, X in (("F", F), ("T", T)):
@@ -237,123 +318,151 @@ def build_rig(V, sk: Skeleton, *, F=None, T=None, W=None,
                              f"{int(X.min()) if X.min() < 0 else int(X.max())}")
     if T is not None and d != 3:
         raise ValueError(f"T (tetrahedra) needs 3D vertices, got V of shape {V.shape}")
-    say = progress or (lambda stage, done, total: None)
-
-    def stage(label: str, bar: bool = False):
-        say(label, 0, 0)
-        if bar:
-            return lambda done, total: say(label, done, total)
-        return None
-
-    keep_W = W is not None
-    heat_on = bone == "heat" and not keep_W
-    for what, method in (("bone", None if keep_W else bone), ("endpoint", endpoint)):
+    for what, method in (("bone", None if W is not None else bone), ("endpoint", endpoint)):
         if method == "heat" and (d != 3 or (F is None and T is None)):  # before any work
             raise ValueError(f"{what}='heat' needs a 3D triangle surface F"
                              + (f"; got a {d}D mesh" if d != 3 else " (or tetrahedra T)"))
-    if keep_W:
+    if W is not None:
         W = _weights("W", W, n, sk.n_bones)
-    bbw_endpoint = endpoint in ("bbw", "bbw-joints")
-    surface_3d = d == 3 and T is None
-    known_W = keep_W or heat_on
-    needs_volume = surface_3d and F is not None and (bbw_endpoint
-                                                     or (bone == "bbw" and not known_W))
-    winding = needs_volume and volume == "winding"
-    conforming = needs_volume and volume == "conforming"
-    meshes_itself = needs_volume or (d == 2 and not keep_W and bone == "bbw" and remesh)
-    if clip_skeleton and not meshes_itself:
+    job = _Job(V=V, sk=sk, F=F, T=T, W=W, bone=bone, endpoint=endpoint, tol=tol,
+               clip_skeleton=bool(clip_skeleton), remesh=bool(remesh), volume=volume,
+               volume_size=volume_size, keep_volume=bool(keep_volume),
+               say=progress or (lambda stage, done, total: None))
+    if job.clip_skeleton and not (job.needs_volume or job.remeshes_2d):
         raise ValueError("clip_skeleton applies when stbs meshes the shape itself (bone='bbw' "
                          "without T: a 2D mesh, or a 3D surface)")
-    if keep_W and bbw_endpoint and F is None and T is None:
+    if W is not None and job.bbw_endpoint and F is None and T is None:
         raise ValueError(f"endpoint={endpoint!r} needs the mesh's triangles F or tetrahedra T")
-    if heat_on and T is not None:
-        # Bone heat lives on the surface: the tetrahedra's boundary, extended inside.
-        Fs = F if F is not None else boundary_faces(T)
-        stage("bone heat")
-        Ws = bone_heat(V, Fs, sk)
-        known = np.zeros(n, dtype=bool)
+    return job
+
+
+def _positive(name: str, value) -> float:
+    value = float(value)
+    if not (math.isfinite(value) and value > 0):
+        raise ValueError(f"{name} must be a positive number, got {value!r}")
+    return value
+
+
+def _surface_weights(job: _Job):
+    """The bone weights known before any volume: given, or bone heat on the surface (a
+    tetrahedral mesh's boundary, extended inside); None when BBW is to solve them."""
+    from ..weights import bone_heat
+
+    if job.W is not None:
+        return job.W
+    if not job.heat_on:
+        return None
+    V, F, T = job.V, job.F, job.T
+    Fs = F if F is not None else boundary_faces(T)
+    Ws = bone_heat(V, Fs, job.sk, progress=job.stage("bone heat", bar=True))
+    if T is not None:
+        known = np.zeros(job.n, dtype=bool)
         known[np.unique(Fs)] = True
         if not known.all():
-            stage("extend the bone weights inside")
+            job.stage("extend the bone weights inside")
             Ws = _extend(V, T, Ws, known)
-        W_surface = Ws
-    elif heat_on:
-        stage("bone heat")
-        W_surface = bone_heat(V, F, sk)
-    else:
-        W_surface = W if keep_W else None
-    weld = tet = None
-    if W_surface is not None and needs_volume:
+    return Ws
+
+
+def _solve_mesh(job: _Job):
+    """The mesh bone weights are solved on without a volume mesh (2D, or tetrahedra):
+    ``(Vm, Fm, Tm, kept)``, the rig's vertices first; ``kept``: the 2D
+    re-triangulation to keep as the rig's volume, or None."""
+    from ..meshing import triangulate_2d
+
+    V, F, T = job.V, job.F, job.T
+    if job.d == 3:
+        if T is None:
+            raise ValueError("a 3D rig needs a closed triangle surface F or tetrahedra T")
+        return V, F, T, None
+    if F is None:
+        raise ValueError("a 2D rig needs triangles F (the outline is taken from them)")
+    if not job.remesh:
+        return V, F, None, None
+    job.stage("triangulate (bones inside)")
+    tri = triangulate_2d((V, F), job.sk, clip_skeleton=job.clip_skeleton)
+    kept = Volume.selection(tri.V, tri.F, np.arange(job.n)) if job.keep_volume else None
+    return tri.V, tri.F, None, kept
+
+
+def _bbw_bone_weights(job: _Job, Vm, Fm, Tm):
+    from ..weights import bone_weights
+
+    return bone_weights(Vm, job.sk, method="bbw", F=Fm if Tm is None else None, T=Tm,
+                        tol=job.tol, progress=job.stage("bone weights (bbw)", bar=True))
+
+
+def _volume_rig(job: _Job, W_surface) -> Rig:
+    """A 3D surface's rig solved on a volume mesh of its inside: the winding-number one
+    (:func:`_winding_rig`) or tetrahedra through its own vertices."""
+    from ..meshing import tetrahedralize
+
+    V, F = job.V, job.F
+    index, Vw, Fw = np.arange(job.n), V, F
+    if W_surface is not None:
         # Real assets split vertices at texture and normal seams: weld exact duplicates
         # for a conforming mesh, and give each copy its welded vertex's weight.
-        Vw, Fw, weld, Ww = _weld(V, F, W_surface)
-    if needs_volume and volume == "auto" and volume_size is not None:
-        volume, winding = "winding", True      # a size is the winding volume's
-    if needs_volume and volume == "auto":
-        tet = _try_conforming(Vw if weld is not None else V, Fw if weld is not None else F,
-                              sk, clip_skeleton, stage)
-        conforming, winding = tet is not None, tet is None
-    if winding:
-        return _winding_rig(V, F, sk, W_surface, keep_W, bone, endpoint, tol, volume_size,
-                            stage)
-    if W_surface is not None and conforming:
-        # BBW endpoint weights solve on a volume: mesh the surface with the bones inside
-        # as for bone weights, and extend the kept W harmonically to the new vertices
-        # (the surface values stay exactly as given).
-        if tet is None:
-            stage("tetrahedralize (bones inside)")
-            tet = tetrahedralize(Vw, Fw, sk, clip_skeleton=clip_skeleton)
-        Vm, Fm, Tm = tet.V, Fw, tet.T
-        stage("extend the bone weights inside")
-        Wm = _harmonic_extension(Vm, Tm, Ww)
-    elif W_surface is not None:
-        Vm, Fm, Tm = V, F, T
-        Wm = W_surface
-        weld = None
+        Vw, Fw, index, Ww = _weld(V, F, W_surface)
+    tet = None
+    if job.volume == "auto" and job.volume_size is None:
+        tet = _try_conforming(Vw, Fw, job.sk, job.clip_skeleton, job.stage)
+    if job.volume == "winding" or (job.volume == "auto" and tet is None):
+        return _winding_rig(job, W_surface)
+    if tet is None:
+        job.stage("tetrahedralize (bones inside)")
+        tet = tetrahedralize(Vw, Fw, job.sk, clip_skeleton=job.clip_skeleton)
+    if W_surface is not None:
+        # BBW endpoint weights solve on a volume: extend the kept W harmonically to the
+        # new vertices (the surface values stay exactly as given).
+        job.stage("extend the bone weights inside")
+        Wm = _harmonic_extension(tet.V, tet.T, Ww)
+        W_out = W_surface
     else:
-        if d == 2:
-            if F is None:
-                raise ValueError("a 2D rig needs triangles F (the outline is taken from them)")
-            if remesh:
-                stage("triangulate (bones inside)")
-                tri = triangulate_2d((V, F), sk, clip_skeleton=clip_skeleton)
-                Vm, Fm, Tm = tri.V, tri.F, None
-            else:
-                Vm, Fm, Tm = V, F, None
-        elif T is not None:
-            Vm, Fm, Tm = V, F, T
-        else:
-            if F is None:
-                raise ValueError("a 3D rig needs a closed triangle surface F or tetrahedra T")
-            if tet is None:
-                stage("tetrahedralize (bones inside)")
-                tet = tetrahedralize(V, F, sk, clip_skeleton=clip_skeleton)
-            Vm, Fm, Tm = tet.V, F, tet.T
-        Wm = bone_weights(Vm, sk, method="bbw", F=Fm if Tm is None else None, T=Tm, tol=tol,
-                          progress=stage("bone weights (bbw)", bar=True))
+        Wm = _bbw_bone_weights(job, tet.V, None, tet.T)
+        W_out = Wm[:job.n]
+    E = _endpoints(job, tet.V, Fw, tet.T, Wm, W_out, index)
+    kept = Volume.selection(tet.V, tet.T, index) if job.keep_volume else None
+    return _rig(job, W_out, E, kept)
+
+
+def _endpoints(job: _Job, Vm, Fm, Tm, Wm, W, index):
+    """Endpoint weights (n, b) of the rig's vertices: heat on the surface, projection
+    and idw on the vertices, BBW on the solve mesh ``(Vm, Fm or Tm)`` whose vertex
+    ``index[k]`` is rig vertex k (``Wm``: the bone weights there, ``W``: the rig's)."""
+    from ..weights import endpoint_weights
+
+    endpoint = job.endpoint
     if endpoint == "heat":
-        stage("endpoint weights (heat)")
-        if F is None:                      # a tetrahedral mesh: on its boundary, extended
-            Fs = boundary_faces(T)
-            known = np.zeros(n, dtype=bool)
-            known[np.unique(Fs)] = True
-            E = endpoint_weights(V, sk, method="heat", W=Wm[:n], F=Fs)
-            if not known.all():
-                E = _extend_values(V, T, E, known)
-        else:
-            E = endpoint_weights(V, sk, method="heat", W=Wm[:n], F=F)
-    elif endpoint in ("projection", "idw"):
-        stage(f"endpoint weights ({endpoint})")
-        E = endpoint_weights(V, sk, method=endpoint)
-    else:
-        elem = dict(T=Tm) if Tm is not None else dict(F=Fm)
-        E = endpoint_weights(Vm, sk, method=endpoint, W=Wm, tol=tol,
-                             progress=stage(f"endpoint weights ({endpoint})", bar=True),
-                             **elem)
-        E = E[weld] if weld is not None else E[:n]
-    meta = {"bone": "given" if keep_W else bone, "endpoint": endpoint}
-    W_out = W_surface if W_surface is not None else Wm[:n]
-    return Rig(V=V, F=F, T=T, skeleton=sk, W=W_out, E=E, meta=meta)
+        return _heat_endpoints(job, W)
+    if endpoint in ("projection", "idw"):
+        job.stage(f"endpoint weights ({endpoint})")
+        return endpoint_weights(job.V, job.sk, method=endpoint)
+    elem = dict(T=Tm) if Tm is not None else dict(F=Fm)
+    E = endpoint_weights(Vm, job.sk, method=endpoint, W=Wm, tol=job.tol,
+                         progress=job.stage(f"endpoint weights ({endpoint})", bar=True),
+                         **elem)
+    return E[index]
+
+
+def _heat_endpoints(job: _Job, W):
+    """Heat endpoint weights on the surface (a tetrahedral mesh's boundary, extended)."""
+    from ..weights import endpoint_weights
+
+    V, F, T = job.V, job.F, job.T
+    bar = job.stage("endpoint weights (heat)", bar=True)
+    if F is not None:
+        return endpoint_weights(V, job.sk, method="heat", W=W, F=F, progress=bar)
+    Fs = boundary_faces(T)
+    known = np.zeros(job.n, dtype=bool)
+    known[np.unique(Fs)] = True
+    E = endpoint_weights(V, job.sk, method="heat", W=W, F=Fs, progress=bar)
+    return E if known.all() else _extend_values(V, T, E, known)
+
+
+def _rig(job: _Job, W, E, volume) -> Rig:
+    meta = {"bone": "given" if job.W is not None else job.bone, "endpoint": job.endpoint}
+    return Rig(V=job.V, F=job.F, T=job.T, skeleton=job.sk, W=W, E=E, meta=meta,
+               volume=volume)
 
 
 def _try_conforming(V, F, sk, clip_skeleton, stage):
@@ -398,46 +507,54 @@ def _extend_values(V, T, X, known):
     return np.clip(X, 0.0, 1.0)
 
 
-def _winding_rig(V, F, sk, W_surface, keep_W, bone, endpoint, tol, volume_size, stage) -> Rig:
+def _winding_rig(job: _Job, W_surface) -> Rig:
     """A 3D surface's rig on its winding-number volume mesh (:func:`volume_mesh`):
     solve there, interpolate to the surface's vertices."""
     from ..meshing.volume import volume_mesh
     from ..weights import endpoint_weights
-    from ..weights.bbw import BBWSolver
     from ..weights.endpoint import bbw_endpoint
 
-    stage("volume mesh")
-    vm = volume_mesh(V, F, sk, size=volume_size)
+    V, F, sk, stage = job.V, job.F, job.sk, job.stage
+    vm = volume_mesh(V, F, sk, size=job.volume_size, progress=stage("volume mesh", bar=True))
     interp = vm.interpolation(V)
     if W_surface is None:
-        b, bc, _ = vm.boundary_conditions(sk)
-        stage("bone weights: Laplacian")
-        solver = BBWSolver(vm.V, vm.T, degenerate="skip")
-        Wv = solver.solve(b, bc, tol=tol, progress=stage("bone weights (bbw)", bar=True))
-        s = Wv.sum(axis=1)
-        if np.any(s <= 1e-12):
-            i = int(np.argmin(s))
-            raise ValueError(f"BBW left volume vertex {i} at {vm.V[i].tolist()} with all "
-                             "weights 0")
-        Wv /= s[:, None]
+        Wv = _winding_bone_weights(job, vm)
         stage("transfer to the surface")
         W = np.asarray(interp @ Wv)
     else:
         stage("transfer into the volume")
         Wv = _to_volume(vm, V, W_surface, interp)
         W = W_surface
-    if endpoint in ("bbw", "bbw-joints"):
+    if job.bbw_endpoint:
         # A bone with fewer than two points inside the shape has nothing to spread e
         # from 0 to 1 along: it keeps the projection (eq. 8), as said in the warning.
         inside = np.flatnonzero(vm.bone_points(sk) >= 2)
-        Ev = bbw_endpoint(vm.V, sk, W=Wv, T=vm.T, tol=tol, joints=endpoint == "bbw-joints",
-                          bones=inside,
-                          progress=stage(f"endpoint weights ({endpoint})", bar=True))
+        Ev = bbw_endpoint(vm.V, sk, W=Wv, T=vm.T, tol=job.tol,
+                          joints=job.endpoint == "bbw-joints", bones=inside,
+                          progress=stage(f"endpoint weights ({job.endpoint})", bar=True))
         stage("transfer to the surface")
         E = np.clip(np.asarray(interp @ Ev), 0.0, 1.0)
+    elif job.endpoint == "heat":
+        E = endpoint_weights(V, sk, method="heat", W=W, F=F,
+                             progress=stage("endpoint weights (heat)", bar=True))
     else:
-        stage(f"endpoint weights ({endpoint})")
-        E = endpoint_weights(V, sk, method=endpoint, **(
-            dict(W=W, F=F) if endpoint == "heat" else {}))
-    meta = {"bone": "given" if keep_W else bone, "endpoint": endpoint}
-    return Rig(V=V, F=F, T=None, skeleton=sk, W=W, E=E, meta=meta)
+        stage(f"endpoint weights ({job.endpoint})")
+        E = endpoint_weights(V, sk, method=job.endpoint)
+    kept = Volume(V=vm.V, T=vm.T, M=interp) if job.keep_volume else None
+    return _rig(job, W, E, kept)
+
+
+def _winding_bone_weights(job: _Job, vm):
+    """BBW bone weights (m, b) on the winding-number volume, rows normalised."""
+    from ..weights.bbw import BBWSolver
+
+    b, bc, _ = vm.boundary_conditions(job.sk)
+    job.stage("bone weights: Laplacian")
+    solver = BBWSolver(vm.V, vm.T, degenerate="skip")
+    Wv = solver.solve(b, bc, tol=job.tol, progress=job.stage("bone weights (bbw)", bar=True))
+    s = Wv.sum(axis=1)
+    if np.any(s <= 1e-12):
+        i = int(np.argmin(s))
+        raise ValueError(f"BBW left volume vertex {i} at {vm.V[i].tolist()} with all "
+                         "weights 0")
+    return Wv / s[:, None]

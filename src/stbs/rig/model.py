@@ -7,6 +7,7 @@ A :class:`Rig` is data, not a file: :func:`stbs.io.save_rig` and
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -15,7 +16,7 @@ import scipy.sparse as sp
 from .. import _checks
 from ..skeleton import Skeleton
 
-__all__ = ["Rig"]
+__all__ = ["Rig", "Volume"]
 
 
 def _weights(name: str, X: Any, n: int, b: int):
@@ -69,6 +70,85 @@ def _picture(texture: Any, UV: Any, n: int):
     return np.ascontiguousarray(tex), uv
 
 
+@dataclass(frozen=True, eq=False)
+class Volume:
+    """The volume mesh a rig's weights were solved on, kept so that BBW can run again.
+
+    A 3D surface's rig solves its bounded biharmonic weights on a tetrahedral mesh of
+    its inside, and a 2D shape's on a re-triangulation with the bones inside; the rig
+    itself keeps only the given vertices. :func:`stbs.build_rig` with
+    ``keep_volume=True`` keeps that mesh here (``rig.volume``), and
+    :func:`stbs.rig.rig_endpoint_weights` solves on it.
+
+    Attributes
+    ----------
+    V : (m, d) float64
+        The volume's vertices.
+    T : (t, d + 1) int64
+        Its simplices: tetrahedra in 3D, triangles in 2D.
+    M : (n, m) scipy.sparse.csr_array, float64
+        How the rig's vertices come from the volume's: values on the rig are
+        ``M @ values on the volume``. Row k holds rig vertex k's barycentric
+        coordinates in a volume simplex (the winding-number volume, whose vertices
+        are its own), or a single 1 where rig vertex k is a volume vertex (the
+        conforming tetrahedra and the 2D re-triangulation, which keep the rig's
+        vertices: see :attr:`index`). Rows are >= 0 and sum to 1.
+    """
+
+    V: np.ndarray
+    T: np.ndarray
+    M: Any
+
+    @classmethod
+    def selection(cls, V, T, index) -> Volume:
+        """A volume holding the rig's vertices: rig vertex k is volume vertex ``index[k]``."""
+        index = np.asarray(index, dtype=np.int64).ravel()
+        M = sp.csr_array((np.ones(index.size), (np.arange(index.size), index)),
+                         shape=(index.size, np.shape(V)[0]))
+        return cls(V=np.asarray(V, dtype=np.float64), T=np.asarray(T, dtype=np.int64), M=M)
+
+    @property
+    def index(self) -> np.ndarray | None:
+        """(n,) int64: the volume vertex each rig vertex is, or None when some rig vertex
+        is interpolated (the winding-number volume)."""
+        M = self.M
+        if M.nnz != M.shape[0] or np.any(np.diff(M.indptr) != 1) or np.any(M.data != 1.0):
+            return None
+        return np.asarray(M.indices, dtype=np.int64)
+
+    def __repr__(self) -> str:
+        kind = "tetrahedra" if self.T.shape[1] == 4 else "triangles"
+        return f"Volume({self.V.shape[0]} vertices, {self.T.shape[0]} {kind})"
+
+
+def _volume(volume: Any, n: int, d: int) -> Volume | None:
+    """``volume`` checked against the rig's n vertices in d dimensions."""
+    if volume is None:
+        return None
+    if not isinstance(volume, Volume):
+        raise TypeError(f"volume must be a stbs.rig.Volume or None, got "
+                        f"{type(volume).__name__}")
+    Vv = _checks.real_array("volume.V", volume.V, ndim=2, shape=(None, d))
+    m = Vv.shape[0]
+    Tv = _elements("volume.T", volume.T, d + 1, m)
+    if Tv.shape[0] == 0:
+        raise ValueError(f"volume.T must hold at least one simplex, got shape {Tv.shape}")
+    if not sp.issparse(volume.M):
+        raise ValueError(f"volume.M must be a scipy.sparse ({n}, {m}) array, got "
+                         f"{type(volume.M).__name__}")
+    M = sp.csr_array(volume.M, dtype=np.float64)
+    if M.shape != (n, m):
+        raise ValueError(f"volume.M must have shape ({n}, {m}) (rig vertices, volume "
+                         f"vertices), got {M.shape}")
+    M.sort_indices()
+    rows = np.asarray(M.sum(axis=1)).ravel()
+    bad_values = M.nnz > 0 and not (np.all(np.isfinite(M.data)) and M.data.min() >= 0)
+    if bad_values or np.abs(rows - 1).max(initial=0) > 1e-9:
+        raise ValueError("volume.M must hold non-negative weights whose rows sum to 1 "
+                         "(each rig vertex a combination of volume vertices)")
+    return Volume(V=Vv, T=Tv, M=M)
+
+
 class Rig:
     """A rest mesh with its skeleton and weights.
 
@@ -108,6 +188,10 @@ class Rig:
         the picture's left edge, ``v`` up from its bottom edge, both in [0, 1]; vertex
         ``k`` shows pixel ``(row, col) = ((1 - v) H - 1/2, u W - 1/2)``. Needs
         ``texture``.
+    volume : Volume, optional
+        The volume mesh the weights were solved on, when it is not the rig's own
+        (:func:`stbs.build_rig` with ``keep_volume=True``); its ``M`` maps its
+        vertices to the rig's.
 
     Raises
     ------
@@ -139,7 +223,7 @@ class Rig:
 
     def __init__(self, *, V, W, skeleton: Skeleton | None = None, C=None, BE=None,
                  names=None, P=None, F=None, T=None, E=None, meta: dict | None = None,
-                 texture=None, UV=None):
+                 texture=None, UV=None, volume: Volume | None = None):
         V = _checks.vertices(V)
         n, d = V.shape
         if skeleton is not None:
@@ -173,6 +257,7 @@ class Rig:
             raise ValueError(f"meta must be a dict, got {type(meta).__name__}")
         self.meta = meta
         self.texture, self.UV = _picture(texture, UV, n)
+        self.volume = _volume(volume, n, d)
 
     @property
     def skeleton(self) -> Skeleton:
@@ -206,7 +291,7 @@ class Rig:
         is among the changes.
         """
         fields = dict(V=self.V, F=self.F, T=self.T, W=self.W, E=self.E, meta=self.meta,
-                      texture=self.texture, UV=self.UV)
+                      texture=self.texture, UV=self.UV, volume=self.volume)
         if not ({"skeleton", "C", "BE", "names", "P"} & changes.keys()):
             fields["skeleton"] = self._skeleton
         elif "skeleton" not in changes:
@@ -227,4 +312,6 @@ class Rig:
                   f"{getattr(self, k).shape}" for k in ("W", "E") if getattr(self, k) is not None]
         if self.texture is not None:
             parts.append(f"texture={self.texture.shape}")
+        if self.volume is not None:
+            parts.append(f"volume={self.volume!r}")
         return f"Rig({', '.join(parts)})"

@@ -62,6 +62,7 @@ from ..skeleton import Skeleton
 from . import _cholmod
 from ._cholesky import Factor
 from ._deprecate import renamed
+from ._progress import Guard, check_callable
 from .laplacian import MASS_TYPES, cotmatrix, massmatrix
 from .qp import DualActiveSet, _Green, _Schur
 
@@ -404,7 +405,12 @@ class BBWSolver:
             share one factorization of the whole. Ignored with
             ``partition_of_unity``.
         progress : callable, optional
-            ``progress(done, total)`` after each weight function is finished.
+            ``progress(done, total)``: ``done`` of the ``total = m`` functions are
+            finished; called after each function and at every round of the active-set
+            method (and of the polish), so at least once per solver iteration. Raise
+            any exception from it to cancel: the solve stops at its next report, the
+            exception propagates, and ``progress`` is not called again (worker
+            threads included).
 
         Returns
         -------
@@ -418,15 +424,13 @@ class BBWSolver:
             raise ValueError(f"tol must be > 0, got {tol}")
         if int(max_iter) < 1:
             raise ValueError(f"max_iter must be >= 1, got {max_iter}")
-        if progress is not None and not callable(progress):
-            raise TypeError(f"progress must be callable(done, total) or None, "
-                            f"got {type(progress).__name__}")
+        guard = Guard(progress)
         with _blas_threads(self.blas_threads):
             return self._solve(b, bc, bool(partition_of_unity), tol, int(max_iter),
-                               bool(restrict), progress)
+                               bool(restrict), guard)
 
     def _solve(self, b, bc, partition_of_unity: bool, tol: float, max_iter: int,
-               restrict: bool = False, progress=None) -> np.ndarray:
+               restrict: bool, progress: Guard) -> np.ndarray:
         t0 = time.perf_counter()
         b, bc = self._check_bc(b, bc, partition_of_unity)
         m = bc.shape[1]
@@ -438,20 +442,19 @@ class BBWSolver:
                 zero, np.zeros(m), zero, zero, zero, zero, np.ones(m, dtype=bool),
                 partition_of_unity, tol, self.backend, 0,
                 {"factor": 0.0, "solve": 0.0, "total": time.perf_counter() - t0})
-            if progress is not None:
-                progress(m, m)
+            progress(m, m)
             return W
         P = self._prepare(b)
         f0 = P.factor_seconds
         C = np.asarray(P.QUb @ bc)
         if partition_of_unity:
+            progress(0, m)
             Xu = -P.factor.solve(C)
-            run = _Run(self, P, tol, max_iter)
+            run = _Run(self, P, tol, max_iter, on_done=lambda k: progress(0, m))
             run.n_solves += C.shape[1]
             X, rep = run.pou(Xu, C)
             rep.n_solves = run.n_solves
-            if progress is not None:
-                progress(m, m)
+            progress(m, m)
             t_factor = P.factor_seconds - f0
         else:
             X, rep, t_region = self._solve_boxes(P, C, bc, tol, max_iter, restrict, progress)
@@ -482,10 +485,11 @@ class BBWSolver:
         lock = threading.Lock()
 
         def tick(k: int) -> None:
+            """k more functions finished (0: a solver round): report."""
             with lock:
                 totals["done"] += k
-                if progress is not None and k:
-                    progress(totals["done"], m)
+                done = totals["done"]
+            progress(done, m)
 
         def keep(cols, x, rep, n_solves=0, t_region=0.0):
             X[:, cols] = x
@@ -496,7 +500,8 @@ class BBWSolver:
                 totals["t_region"] += t_region
 
         def region(j, threads=None) -> bool:
-            out = self._solve_in_region(P, C[:, j], masks[j], tol, max_iter, threads)
+            out = self._solve_in_region(P, C[:, j], masks[j], tol, max_iter, threads,
+                                        lambda k: tick(0))
             if out is None:                 # the part kept growing: solve on the whole
                 return False
             x, rep, ns, tf = out
@@ -512,11 +517,12 @@ class BBWSolver:
         glob = [j for j in range(m) if masks[j] is None]
         parts = [j for j in range(m) if masks[j] is not None]
         workers = self._workers(len(parts))
+        tick(0)
         if workers > 1:
             # Functions on parts of the mesh, each with its own factor, on separate
             # threads (CHOLMOD through ctypes and the dense kernels release the GIL).
             with ThreadPoolExecutor(workers, thread_name_prefix="stbs-bbw") as ex:
-                ok = [f.result() for f in [ex.submit(region, j, 1) for j in parts]]
+                ok = progress.join([ex.submit(region, j, 1) for j in parts])
         else:
             ok = [region(j) for j in parts]
         glob += [j for j, good in zip(parts, ok, strict=True) if not good]
@@ -591,8 +597,9 @@ class BBWSolver:
         return masks
 
     def _solve_in_region(self, P: _Prepared, c: np.ndarray, mask: np.ndarray, tol, max_iter,
-                         threads: int | None = None):
-        """One function on ``mask`` (w = 0 outside), grown until the whole QP's KKT hold."""
+                         threads: int | None = None, report: Callable[[int], None] | None = None):
+        """One function on ``mask`` (w = 0 outside), grown until the whole QP's KKT hold;
+        ``report(0)`` at every solver round."""
         nu = P.U.size
         n_solves, t_factor = 0, 0.0
         for _ in range(_GROW_MAX):
@@ -603,7 +610,8 @@ class BBWSolver:
             Pr = _Prepared(b"", P.U[R], K, None, P.b_sorted, K.diagonal(), self.backend,
                            self.threads)
             cr = c[R][:, None]
-            run = _Run(self, Pr, tol, max_iter, threads=threads)
+            run = _Run(self, Pr, tol, max_iter, threads=threads,
+                       on_done=None if report is None else (lambda k: report(0)))
             xu = -Pr.factor.solve(cr, threads=threads)
             run.n_solves += 1
             xr, rep = run.boxes(xu, cr)
@@ -705,6 +713,8 @@ class _Run:
         schur = _Schur(j=np.int64, v=np.int64)    # constraint w_j(v) = 0
         iters = 0
         for _ in range(self.max_iter):
+            if self.on_done is not None:
+                self.on_done(0)              # a round: report (and let a cancel stop it)
             cj, cv = schur.get("j"), schur.get("v")
             excl = np.zeros((nu, m), dtype=bool)
             excl[cv, cj] = True
@@ -798,10 +808,7 @@ def _heat_bone_weights(V: np.ndarray, sk: Skeleton, F, T, options: dict, progres
                          + (": leave T out" if F is not None else "; pass F, got T only"))
     if F is None:
         raise ValueError("method='heat' needs the 3D triangle surface F (f, 3), got F=None")
-    W = bone_heat(V, F, sk)
-    if progress is not None:
-        progress(sk.n_bones, sk.n_bones)
-    return W
+    return bone_heat(V, F, sk, progress=progress)
 
 
 def bone_weights(V, sk: Skeleton, *, method: BoneMethod = "bbw", F=None, T=None,
@@ -834,8 +841,10 @@ def bone_weights(V, sk: Skeleton, *, method: BoneMethod = "bbw", F=None, T=None,
     tol : float, optional
         ``"bbw"`` only: KKT tolerance of the QP (default 1e-10).
     progress : callable, optional
-        ``progress(done, total)`` after each bone's function is solved (``"heat"``:
-        once, at the end).
+        ``progress(done, total)``: ``"bbw"``, as :meth:`BBWSolver.solve` (after each
+        bone's function and at every solver round); ``"heat"``, as
+        :func:`stbs.weights.bone_heat`. Raise any exception from it to cancel: it
+        propagates, and ``progress`` is not called again.
 
     Returns
     -------
@@ -875,9 +884,7 @@ def bone_weights(V, sk: Skeleton, *, method: BoneMethod = "bbw", F=None, T=None,
 
     _checks.choice("method", method, BONE_METHODS)
     V = _checks.skeleton(sk, V)
-    if progress is not None and not callable(progress):
-        raise TypeError(f"progress must be callable(done, total) or None, "
-                        f"got {type(progress).__name__}")
+    check_callable(progress)
     if method == "heat":
         return _heat_bone_weights(V, sk, F, T, {"partition_of_unity": partition_of_unity,
                                                 "samples": samples, "tol": tol}, progress)

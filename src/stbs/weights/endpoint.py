@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import threading
 import warnings
-from concurrent.futures import ThreadPoolExecutor, as_completed
+from concurrent.futures import ThreadPoolExecutor
 from typing import Literal
 
 import numpy as np
@@ -30,10 +30,11 @@ from scipy.sparse.csgraph import connected_components
 from .. import _checks
 from ..skeleton import Skeleton
 from . import _raycast
+from ._progress import Guard
 
 __all__ = ["ENDPOINT_METHODS", "IDW_NORMALIZATIONS", "DEFAULT_THRESHOLD", "endpoint_weights",
            "projection", "idw", "idw_joint_weights", "heat_endpoint", "bbw_endpoint",
-           "joints_to_endpoint"]
+           "joints_to_endpoint", "bone_points"]
 
 EndpointMethod = Literal["projection", "idw", "heat", "bbw", "bbw-joints"]
 ENDPOINT_METHODS: tuple[str, ...] = ("projection", "idw", "heat", "bbw", "bbw-joints")
@@ -195,7 +196,8 @@ def _bone_weights(W, n: int, b: int):
 
 # -- heat --------------------------------------------------------------------------------
 def heat_endpoint(V, F, sk: Skeleton, *, W=None, threshold: float | None = DEFAULT_THRESHOLD,
-                  backend: _raycast.RayBackend = "auto") -> np.ndarray:
+                  backend: _raycast.RayBackend = "auto", bones=None,
+                  progress=None) -> np.ndarray:
     """Bone-heat endpoint weights: joints as bones shrunk to points, then eq. 7.
 
     Parameters
@@ -213,6 +215,13 @@ def heat_endpoint(V, F, sk: Skeleton, *, W=None, threshold: float | None = DEFAU
         The restriction threshold (paper §3: 1e-7); None disables it.
     backend : {"auto", "embree", "numpy"}
         Visibility ray casting (3D).
+    bones : sequence of int, optional
+        Solve only these bones; the others keep the projection (eq. 8). None: all.
+    progress : callable, optional
+        ``progress(done, total)``: ``done`` of the ``total`` bones solved, after each
+        one (without the restriction: one solve for all joints, reported as
+        :func:`stbs.weights.bone_heat` does). Raise any exception from it to cancel:
+        it propagates, and ``progress`` is not called again.
 
     Returns
     -------
@@ -231,6 +240,8 @@ def heat_endpoint(V, F, sk: Skeleton, *, W=None, threshold: float | None = DEFAU
     threshold = _threshold(threshold)
     n, b = V.shape[0], sk.n_bones
     W = _bone_weights(W, n, b)
+    todo = _bone_list(bones, b)
+    guard = Guard(progress)
     solver = BoneHeatSolver(V, F, backend=backend)
     F = solver.F
     labels = [f"joint {k}" for k in range(sk.n_joints)]
@@ -241,13 +252,14 @@ def heat_endpoint(V, F, sk: Skeleton, *, W=None, threshold: float | None = DEFAU
         for (k, _), x in stand_in.items():
             if np.array_equal(C[k], sk.C[k]):  # the first bone's stand-in for a joint
                 C[k] = x
-        J, _ = solver.solve(C, labels=labels)
+        J, _ = solver.solve(C, labels=labels, progress=guard)
         used = np.unique(F)
-        E[used] = joints_to_endpoint(J[used], sk)
+        E[used[:, None], todo] = joints_to_endpoint(J[used], sk)[:, todo]
         return E
-    for i in range(b):
+    for done, i in enumerate(todo, 1):
         faces = _support_elements(F, _column(W, i), threshold)
         if not faces.any():
+            guard(done, len(todo))
             continue
         a, e = sk.BE[i]
         C = sk.C.copy()
@@ -258,6 +270,7 @@ def heat_endpoint(V, F, sk: Skeleton, *, W=None, threshold: float | None = DEFAU
                                     f"w > {threshold:g}: ")
         used = np.unique(F[faces])
         E[used, i] = 0.5 * ((1.0 - X[used, 0]) + X[used, 1])
+        guard(done, len(todo))
     return np.clip(E, 0.0, 1.0)
 
 
@@ -377,16 +390,27 @@ def _on_bone(V: np.ndarray, used: np.ndarray, sk: Skeleton, i: int,
     return used[on], t[on]
 
 
+def bone_points(V, sk: Skeleton, Ele) -> np.ndarray:
+    """(b,) int: how many vertices of the elements ``Ele`` lie on each bone (joints
+    included), within ``ON_BONE_TOL`` of the bounding-box diagonal. BBW endpoint
+    weights spread e from 0 to 1 along a bone only with at least two."""
+    V = _checks.skeleton(sk, V)
+    used = np.unique(np.asarray(Ele))
+    tol = ON_BONE_TOL * max(float(np.linalg.norm(np.ptp(V, axis=0))), 1e-300)
+    return np.array([_on_bone(V, used, sk, i, tol)[0].size for i in range(sk.n_bones)],
+                    dtype=np.int64)
+
+
 def _solve_region(BBWSolver, V: np.ndarray, Ele: np.ndarray, mask: np.ndarray | None,
                   bidx: np.ndarray, bc: np.ndarray, cache: dict, tol: float = BBW_TOL,
-                  threads: int | None = None):
+                  threads: int | None = None, progress=None):
     """BBW on the elements ``Ele[mask]`` (all when None) with constraints ``bidx``/``bc``.
 
     Components of the region holding no constrained vertex are dropped (their
     QP would be unconstrained). Returns the solved vertices and their values.
     ``threads`` is passed to the solver when given (then the caller limits the BLAS
-    threads). Several threads may call this at once: the whole-mesh solver in ``cache``
-    is built and used under ``cache["lock"]``.
+    threads); ``progress`` to its solve. Several threads may call this at once: the
+    whole-mesh solver in ``cache`` is built and used under ``cache["lock"]``.
     """
     sub = Ele if mask is None else Ele[mask]
     verts = np.unique(sub)
@@ -404,17 +428,19 @@ def _solve_region(BBWSolver, V: np.ndarray, Ele: np.ndarray, mask: np.ndarray | 
     # With threads given, the caller holds the BLAS thread limit for all workers:
     # threadpoolctl's limits are process-wide, so per-thread ones would undo each other.
     kw = {} if threads is None else {"threads": threads, "blas_threads": None}
+    solve_kw = {} if progress is None else {"progress": progress}
     if mask is None and verts.size == n:
         # the whole mesh: one solver (L, M, Q and the factor of a repeated b) for all
         with cache.setdefault("lock", threading.Lock()):
             if "full" not in cache:
                 cache["full"] = BBWSolver(V, sub, **kw)
-            X = cache["full"].solve(bidx, bc, tol=tol)
+            X = cache["full"].solve(bidx, bc, tol=tol, **solve_kw)
         return verts, np.clip(np.asarray(X, dtype=float).reshape(n, -1), 0.0, 1.0)
     local = np.full(n, -1, dtype=np.int64)
     local[verts] = np.arange(verts.size)
     solver = BBWSolver(V[verts], local[sub], **kw)
-    X = np.asarray(solver.solve(local[bidx], bc, tol=tol), dtype=float).reshape(verts.size, -1)
+    X = np.asarray(solver.solve(local[bidx], bc, tol=tol, **solve_kw),
+                   dtype=float).reshape(verts.size, -1)
     return verts, np.clip(X, 0.0, 1.0)
 
 
@@ -428,6 +454,70 @@ def _bone_workers(BBWSolver, b: int) -> int:
     if BBWSolver is not Ours:
         return 1
     return parallel_workers(_cholmod.default_threads(), b)
+
+
+def _bone_list(bones, b: int) -> list[int]:
+    """``bones`` (None: all) as a sorted list of distinct bone indices, checked."""
+    if bones is None:
+        return list(range(b))
+    todo = np.unique(_checks.index_array("bones", bones, ndim=1)).tolist()
+    if todo and (todo[0] < 0 or todo[-1] >= b):
+        raise ValueError(f"bones must hold bone indices in 0..{b - 1}, got {bones!r}")
+    return todo
+
+
+class _Mesh:
+    """What the per-bone constraints of :func:`bbw_endpoint` need of the mesh."""
+
+    def __init__(self, V: np.ndarray, Ele: np.ndarray, sk: Skeleton):
+        self.V, self.Ele, self.sk = V, Ele, sk
+        self.on_tol = ON_BONE_TOL * max(float(np.linalg.norm(np.ptp(V, axis=0))), 1e-300)
+        self.used = np.unique(Ele)     # vertices in no element cannot carry a constraint
+        self._outside: dict[int, bool] = {}
+
+    def outside(self, k: int) -> bool:
+        """Whether joint k lies outside the mesh (computed once, when asked)."""
+        if k not in self._outside:
+            self._outside[k] = not _in_elements(self.V, self.Ele, self.sk.C[k])
+        return self._outside[k]
+
+
+def _direct_constraints(mesh: _Mesh, i: int, jv: dict, far: dict, nearest: dict):
+    """Bone i's constraints for e_i itself: ``t`` on the bone, 0 and 1 at its joints."""
+    sk = mesh.sk
+    a, e = (int(k) for k in sk.BE[i])
+    on, t = _on_bone(mesh.V, mesh.used, sk, i, mesh.on_tol)
+    val = dict(zip(on.tolist(), t.tolist(), strict=True))
+    own = on.size >= 2 and float(np.ptp(t)) > 0.0
+    held = []
+    for k, value in ((a, 0.0), (e, 1.0)):
+        # A joint with no vertex on it: its nearest vertex stands in, unless the joint
+        # lies outside the mesh and the bone has vertices of its own (a mesh built with
+        # the skeleton clipped to the shape: e = t suffices).
+        if k in far and own and mesh.outside(k):
+            continue
+        val[jv[k]] = value
+        held.append(k)
+        if k in far:
+            nearest[k] = far[k]
+    if len(held) == 2 and jv[a] == jv[e]:
+        _warn_nearest(nearest)
+        raise ValueError(f"joints {a} and {e} map to the same mesh vertex {jv[a]}; "
+                         f"BBW endpoint weights of bone {i} ({sk.names[i]!r}) need a "
+                         "vertex per joint (refine the mesh)")
+    return np.fromiter(val.keys(), dtype=np.int64), np.fromiter(val.values(), dtype=float)[:, None]
+
+
+def _restricted(mesh: _Mesh, Wi, threshold: float, bidx, vals, own, joints: bool):
+    """The region of a bone's solve (elements touching ``w_i > threshold`` or its own
+    constrained vertices ``own``); joint weights keep only the constraints inside it."""
+    mask = _support_elements(mesh.Ele, Wi, threshold, extra=own)
+    if joints:
+        inside = np.zeros(mesh.V.shape[0], dtype=bool)
+        inside[np.unique(mesh.Ele[mask])] = True
+        keep = inside[bidx]
+        bidx, vals = bidx[keep], vals[keep]
+    return mask, bidx, vals
 
 
 def bbw_endpoint(V, sk: Skeleton, *, T=None, F=None, W=None,
@@ -458,7 +548,10 @@ def bbw_endpoint(V, sk: Skeleton, *, T=None, F=None, W=None,
     tol : float
         KKT tolerance of each BBW solve (:meth:`stbs.weights.BBWSolver.solve`).
     progress : callable, optional
-        ``progress(done, total)`` after each bone.
+        ``progress(done, total)``: ``done`` of the ``total`` bones solved, after each
+        bone (the one solve of all joints, unrestricted ``"bbw-joints"``: at every
+        solver round). Raise any exception from it to cancel: the solves stop at their
+        next round, the exception propagates, and ``progress`` is not called again.
     bones : sequence of int, optional
         Solve only these bones; the others keep the projection (eq. 8). None: all.
 
@@ -477,19 +570,13 @@ def bbw_endpoint(V, sk: Skeleton, *, T=None, F=None, W=None,
     Ele = _elements(V, F, T)
     n, b = V.shape[0], sk.n_bones
     W = _bone_weights(W, n, b)
+    guard = Guard(progress)
     BBWSolver = _bbw_solver_class()
-    on_tol = ON_BONE_TOL * max(float(np.linalg.norm(np.ptp(V, axis=0))), 1e-300)
+    mesh = _Mesh(V, Ele, sk)
     E = projection(V, sk)
     restrict = W is not None and threshold is not None
-    cache: dict = {}
-    if bones is None:
-        todo = list(range(b))
-    else:
-        todo = np.unique(_checks.index_array("bones", bones, ndim=1)).tolist()
-        if todo and (todo[0] < 0 or todo[-1] >= b):
-            raise ValueError(f"bones must hold bone indices in 0..{b - 1}, got {bones!r}")
-    used = np.unique(Ele)     # vertices in no element cannot carry a constraint
-    jv, far = _joint_vertices(V, used, sk, on_tol,
+    todo = _bone_list(bones, b)
+    jv, far = _joint_vertices(V, mesh.used, sk, mesh.on_tol,
                               range(sk.n_joints) if joints
                               else np.unique(sk.BE[todo]) if todo else [])
     if joints:
@@ -497,20 +584,9 @@ def bbw_endpoint(V, sk: Skeleton, *, T=None, F=None, W=None,
             cand, ks = _unique_joint_vertices(jv)
         finally:
             _warn_nearest(far)
+        if not restrict and len(todo) == b:
+            return _all_joints(BBWSolver, mesh, E, cand, ks, tol, guard)
     nearest: dict[int, str] = {}
-    outside: dict[int, bool] = {}     # joints with no vertex: outside the mesh? (lazily)
-    if joints and not restrict and len(todo) == b:
-        # One solve for all joints on the whole mesh, then eq. 7.
-        bidx = cand
-        bc = np.zeros((len(bidx), sk.n_joints))
-        bc[np.arange(len(bidx)), ks] = 1.0
-        verts, X = _solve_region(BBWSolver, V, Ele, None, bidx, bc, cache, tol)
-        J = np.zeros((n, sk.n_joints))
-        J[verts] = X
-        E[verts] = joints_to_endpoint(J[verts], sk)
-        if progress is not None:
-            progress(b, b)
-        return E
     tasks = []
     for i in todo:
         a, e = (int(k) for k in sk.BE[i])
@@ -519,48 +595,45 @@ def bbw_endpoint(V, sk: Skeleton, *, T=None, F=None, W=None,
             vals[ks == a, 0] = 1.0
             vals[ks == e, 1] = 1.0
         else:
-            on, t = _on_bone(V, used, sk, i, on_tol)
-            val = dict(zip(on.tolist(), t.tolist(), strict=True))
-            own = on.size >= 2 and float(np.ptp(t)) > 0.0
-            held = []
-            for k, value in ((a, 0.0), (e, 1.0)):
-                # A joint with no vertex on it: its nearest vertex stands in, unless the
-                # joint lies outside the mesh and the bone has vertices of its own (a
-                # mesh built with the skeleton clipped to the shape: e = t suffices).
-                if k in far and own and k not in outside:
-                    outside[k] = not _in_elements(V, Ele, sk.C[k])
-                if k not in far or not (own and outside[k]):
-                    val[jv[k]] = value
-                    held.append(k)
-                    if k in far:
-                        nearest[k] = far[k]
-            if len(held) == 2 and jv[a] == jv[e]:
-                _warn_nearest(nearest)
-                raise ValueError(f"joints {a} and {e} map to the same mesh vertex {jv[a]}; "
-                                 f"BBW endpoint weights of bone {i} ({sk.names[i]!r}) need a "
-                                 "vertex per joint (refine the mesh)")
-            bidx = np.fromiter(val.keys(), dtype=np.int64)
-            vals = np.fromiter(val.values(), dtype=float)[:, None]
+            bidx, vals = _direct_constraints(mesh, i, jv, far, nearest)
         mask = None
         if restrict:
             own = np.array([jv[a], jv[e]]) if joints else bidx
-            mask = _support_elements(Ele, _column(W, i), threshold, extra=own)
-            if joints:
-                inside = np.zeros(n, dtype=bool)
-                inside[np.unique(Ele[mask])] = True
-                keep = inside[bidx]
-                bidx, vals = bidx[keep], vals[keep]
+            mask, bidx, vals = _restricted(mesh, _column(W, i), threshold, bidx, vals, own,
+                                           joints)
         tasks.append((i, mask, bidx, vals))
     _warn_nearest(nearest)
+    return _solve_bones(BBWSolver, mesh, E, tasks, joints, tol, guard)
+
+
+def _all_joints(BBWSolver, mesh: _Mesh, E, cand, ks, tol, guard: Guard) -> np.ndarray:
+    """Unrestricted joint weights of all joints: one solve on the whole mesh, eq. 7."""
+    sk, b = mesh.sk, mesh.sk.n_bones
+    bc = np.zeros((len(cand), sk.n_joints))
+    bc[np.arange(len(cand)), ks] = 1.0
+    verts, X = _solve_region(BBWSolver, mesh.V, mesh.Ele, None, cand, bc, {}, tol,
+                             progress=lambda done, total: guard(done * b // total, b))
+    J = np.zeros((mesh.V.shape[0], sk.n_joints))
+    J[verts] = X
+    E[verts] = joints_to_endpoint(J[verts], sk)
+    return E
+
+
+def _solve_bones(BBWSolver, mesh: _Mesh, E, tasks, joints: bool, tol, guard: Guard):
+    """The per-bone solves of :func:`bbw_endpoint`, on threads when they pay."""
+    cache: dict = {}
+    done = [0]
 
     def solve(task, threads=None):
         i, mask, bidx, vals = task
-        return (i, *_solve_region(BBWSolver, V, Ele, mask, bidx, vals, cache, tol, threads))
+        return (i, *_solve_region(BBWSolver, mesh.V, mesh.Ele, mask, bidx, vals, cache, tol,
+                                  threads, progress=guard.check))
 
-    def store(done, i, verts, X):
+    def store(result):
+        i, verts, X = result
         E[verts, i] = X[:, 0] if not joints else 0.5 * ((1.0 - X[:, 0]) + X[:, 1])
-        if progress is not None:
-            progress(done, len(todo))
+        done[0] += 1
+        guard(done[0], len(tasks))
 
     workers = _bone_workers(BBWSolver, len(tasks))
     if workers > 1:
@@ -570,17 +643,10 @@ def bbw_endpoint(V, sk: Skeleton, *, T=None, F=None, W=None,
 
         with _blas_threads(1), \
                 ThreadPoolExecutor(workers, thread_name_prefix="stbs-endpoint") as ex:
-            futures = [ex.submit(solve, task, 1) for task in tasks]
-            try:
-                for done, f in enumerate(as_completed(futures), 1):
-                    store(done, *f.result())
-            except BaseException:
-                for f in futures:      # a bone failed: start no more of them
-                    f.cancel()
-                raise
+            guard.join([ex.submit(solve, task, 1) for task in tasks], on_result=store)
     else:
-        for done, task in enumerate(tasks, 1):
-            store(done, *solve(task))
+        for task in tasks:
+            store(solve(task))
     return np.clip(E, 0.0, 1.0)
 
 
@@ -602,7 +668,7 @@ def endpoint_weights(V, sk: Skeleton, *, method: EndpointMethod = "projection",
                      W=None, F=None, T=None, threshold: float | None = DEFAULT_THRESHOLD,
                      alpha: float | None = None, normalize: IdwNormalization | None = None,
                      backend: _raycast.RayBackend | None = None,
-                     tol: float | None = None, progress=None) -> np.ndarray:
+                     tol: float | None = None, bones=None, progress=None) -> np.ndarray:
     """Endpoint weights E (n, b) by one of the paper's methods.
 
     Parameters
@@ -634,8 +700,14 @@ def endpoint_weights(V, sk: Skeleton, *, method: EndpointMethod = "projection",
     tol : float, optional
         ``"bbw"``/``"bbw-joints"`` only: KKT tolerance of the BBW solves (default
         1e-10, as :meth:`stbs.weights.BBWSolver.solve`).
+    bones : sequence of int, optional
+        Only these bones' columns are computed; the others hold the projection (eq. 8).
+        None: all.
     progress : callable, optional
-        ``progress(done, total)`` after each bone (``"bbw"``, ``"bbw-joints"``).
+        ``progress(done, total)``: the solved methods (heat, bbw, bbw-joints) after
+        each bone, and within long solves (see :func:`bbw_endpoint`,
+        :func:`heat_endpoint`); the closed forms once, at the end. Raise any exception
+        from it to cancel: it propagates, and ``progress`` is not called again.
 
     Returns
     -------
@@ -678,17 +750,23 @@ def endpoint_weights(V, sk: Skeleton, *, method: EndpointMethod = "projection",
             raise ValueError(f"{name} applies to {which} only, got {name}={value!r} "
                              f"with method={method!r}")
     threshold = _threshold(threshold)
-    if method == "projection":
-        return projection(V, sk)
-    if method == "idw":
-        return idw(V, sk, alpha=2.0 if alpha is None else alpha,
-                   normalize="bone" if normalize is None else normalize)
+    if method in ("projection", "idw"):
+        todo = _bone_list(bones, sk.n_bones)
+        guard = Guard(progress)
+        E = projection(V, sk)
+        if method == "idw":
+            E[:, todo] = idw(V, sk, alpha=2.0 if alpha is None else alpha,
+                             normalize="bone" if normalize is None else normalize)[:, todo]
+        guard(len(todo), len(todo))
+        return E
     if method == "heat":
         if F is None:
             raise ValueError("method='heat' needs triangles F: the surface in 3D "
                              "(visibility and diffusion live on it), the shape in 2D")
         return heat_endpoint(V, F, sk, W=W, threshold=threshold,
-                             backend="auto" if backend is None else backend)
+                             backend="auto" if backend is None else backend, bones=bones,
+                             progress=progress)
     return bbw_endpoint(V, sk, T=T, F=F, W=W, threshold=threshold,
                         joints=method == "bbw-joints",
-                        tol=BBW_TOL if tol is None else float(tol), progress=progress)
+                        tol=BBW_TOL if tol is None else float(tol), progress=progress,
+                        bones=bones)

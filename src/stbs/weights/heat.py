@@ -42,6 +42,7 @@ from scipy.sparse.csgraph import connected_components
 from .. import _checks
 from ..skeleton import Skeleton
 from . import _raycast
+from ._progress import check_callable
 from .laplacian import cotmatrix, massmatrix
 
 __all__ = ["BoneHeatSolver", "BoneHeatWarning", "HeatReport", "bone_heat",
@@ -182,7 +183,8 @@ class BoneHeatSolver:
         self._cache: tuple[bytes, _Nearest] | None = None
 
     # -- visibility -------------------------------------------------------------------
-    def _nearest(self, P0: np.ndarray, P1: np.ndarray) -> _Nearest:
+    def _nearest(self, P0: np.ndarray, P1: np.ndarray, report=None) -> _Nearest:
+        """The nearest visible handles; ``report(r, h + 1)`` before each ray-casting round."""
         key = P0.tobytes() + P1.tobytes()
         if self._cache is not None and self._cache[0] == key:
             return self._cache[1]
@@ -201,6 +203,8 @@ class BoneHeatSolver:
         first_occluded = np.zeros(n, dtype=bool)
         active = self._used      # vertices in no triangle (e.g. a tet mesh's inside) skip
         for r in range(h):
+            if report is not None:
+                report(r, h + 1)
             hnd = order[active, r]
             test = D[active, hnd] <= dstar[active] * (1 + TIE_TOL)
             active, hnd = active[test], hnd[test]
@@ -223,7 +227,7 @@ class BoneHeatSolver:
     # -- solve ------------------------------------------------------------------------
     def solve(self, P0, P1=None, *, c: float = 1.0, faces=None, columns=None,
               labels: Sequence[str] | None = None, on_empty: OnEmpty = "raise",
-              context: str = "") -> tuple[np.ndarray, HeatReport]:
+              context: str = "", progress=None) -> tuple[np.ndarray, HeatReport]:
         """Heat weights of handles (segments ``P0[i] -> P1[i]``, or points ``P0[i]``).
 
         Parameters
@@ -247,6 +251,9 @@ class BoneHeatSolver:
             has all-zero weights: raise a ``ValueError`` naming it, or warn.
         context : str
             Prefix for messages (e.g. which bone's restricted solve this is).
+        progress : callable, optional
+            ``progress(done, h + 1)`` before each round of visibility ray casting
+            (``done`` < h), then ``(h + 1, h + 1)`` once solved. Raise from it to cancel.
 
         Returns
         -------
@@ -276,7 +283,7 @@ class BoneHeatSolver:
         V = self.V
         n = V.shape[0]
         X = np.zeros((n, cols.size))
-        nv = self._nearest(P0, P1)
+        nv = self._nearest(P0, P1, progress)
         if F.shape[0] == 0:
             report = HeatReport(labels, np.zeros(h, np.int64), nv.n_occluded, 0, 0,
                                 (), tuple(int(i) for i in cols), self.backend)
@@ -330,6 +337,8 @@ class BoneHeatSolver:
         if rhs.any():
             sol = _factorize(sp.csc_matrix(A))(np.asarray(rhs, dtype=float))
             X[used] = np.clip(sol.reshape(used.size, cols.size), 0.0, 1.0)
+        if progress is not None:
+            progress(h + 1, h + 1)
         return X, report
 
 
@@ -407,7 +416,7 @@ def _bone_labels(sk: Skeleton) -> list[str]:
 
 def bone_heat(V, F, sk: Skeleton, *, c: float = 1.0,
               backend: _raycast.RayBackend = "auto", on_empty: OnEmpty = "raise",
-              return_report: bool = False):
+              return_report: bool = False, progress=None):
     """Bone heat weights W (Baran & Popović 2007) of a 3D surface or a 2D shape.
 
     Parameters
@@ -425,6 +434,11 @@ def bone_heat(V, F, sk: Skeleton, *, c: float = 1.0,
         :class:`BoneHeatWarning` (its column is then zero).
     return_report : bool
         Also return the :class:`HeatReport`.
+    progress : callable, optional
+        ``progress(done, total)``, ``total = b + 1``: before each round of visibility
+        ray casting (one per rank of nearness, at most b), then ``(b + 1, b + 1)``
+        once solved. Raise any exception from it to cancel: it propagates, and
+        ``progress`` is not called again.
 
     Returns
     -------
@@ -434,8 +448,10 @@ def bone_heat(V, F, sk: Skeleton, *, c: float = 1.0,
         Only with ``return_report=True``.
     """
     V = _checks.skeleton(sk, V)
+    check_callable(progress)
     solver = BoneHeatSolver(V, F, backend=backend)
-    W, report = solver.solve(sk.A, sk.B, c=c, labels=_bone_labels(sk), on_empty=on_empty)
+    W, report = solver.solve(sk.A, sk.B, c=c, labels=_bone_labels(sk), on_empty=on_empty,
+                             progress=progress)
     W = _normalise_rows(W)
     return (W, report) if return_report else W
 

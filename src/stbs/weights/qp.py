@@ -290,7 +290,9 @@ class DualActiveSet:
     dK : (nu,) float, optional
         ``K.diagonal()``, when the caller has it.
     on_done : callable, optional
-        ``on_done(k)`` when k more columns have finished their rounds.
+        ``on_done(k)`` when k more columns have finished their rounds, and
+        ``on_done(0)`` at the start of every round (of the polish too), so that a
+        caller can report progress, or cancel by raising from it.
 
     Attributes
     ----------
@@ -352,6 +354,8 @@ class DualActiveSet:
         iters = np.zeros(m, dtype=np.int64)
         done = np.zeros(m, dtype=bool)
         for _ in range(self.max_iter):
+            if self.on_done is not None:
+                self.on_done(0)          # a round: report (and let a cancel stop it)
             new = {}
             for j in np.flatnonzero(~done):
                 x, sj = X[:, j], schur[j]
@@ -455,6 +459,8 @@ class DualActiveSet:
         at_lo, at_hi = x <= lo, x >= hi
         best = (x, self.residual(x, c))
         for it in range(1, _POLISH_ITER + 1):
+            if self.on_done is not None:
+                self.on_done(0)
             F = np.flatnonzero(~(at_lo | at_hi))
             y = np.where(at_hi, hi, np.where(at_lo, lo, 0.0))
             if F.size:
