@@ -6,8 +6,12 @@ them (:class:`RigPayload`: positions, faces, the skeleton with its hierarchy, th
 heaviest bones per vertex with their bone and endpoint weights), the current pose, the
 clips the page plays (held by id and evaluated by :meth:`stbs.Clip.arrays`, see
 :mod:`stbs.viewer.clips`), and atomic saves of poses, clips and the rig (``.npz`` or
-glTF). The rules it enforces (Host, token, confined paths, body limits) are in
-:mod:`stbs.viewer.server` and docs/viewer.md.
+glTF). The server is cut into units: :mod:`~stbs.viewer.state` (what it holds),
+:mod:`~stbs.viewer.routes` (the route table), :mod:`~stbs.viewer.handler` (framing and
+the Host, token and body rules), :mod:`~stbs.viewer.jobs` (work in a worker thread),
+:mod:`~stbs.viewer.saves`, :mod:`~stbs.viewer.bones` (a pose on the wire) and
+:mod:`~stbs.viewer.refusal` (the one error answer); docs/viewer-api.md is the API's
+reference.
 
 The page itself (``static/index.html`` and the bundle ``static/viewer.js``, built from
 ``viewer/src`` by ``make``) skins the rig in a vertex shader; without the bundle the

@@ -193,9 +193,18 @@ def _set_world(req: Request, app) -> Reply:
     (:meth:`stbs.Pose.local`, :meth:`stbs.Pose.from_local`), now the current pose."""
     state = app.state
     world = bones.read_world(req.json(), state.rig.skeleton)
-    L, D = world.local()
-    pose = Pose.from_local(world.skeleton, L, stretch=world.stretch, twist=world.twist,
-                           offsets=D)
+    with np.errstate(all="ignore"):     # huge values overflow: refused below, no warning
+        L, D = world.local()
+        finite = np.isfinite(L).all() and np.isfinite(D).all()
+        pose = Pose.from_local(world.skeleton, L, stretch=world.stretch, twist=world.twist,
+                               offsets=D) if finite else None
+        # the pose file form is in degrees: a twist past the float64 range in degrees too
+        ok = pose is not None and np.isfinite(pose.origins).all() and \
+            np.isfinite(np.rad2deg(pose.twist)).all()
+    if not ok:
+        raise Refusal(400, "request body: these world transforms give a pose that is not "
+                           "finite (a stretch, twist or position too large); expected a pose "
+                           "within the range of float64")
     state.set_pose(pose)
     return json_reply({"pose": state.pose_object(), "bones": bones.pose_json(pose)})
 
