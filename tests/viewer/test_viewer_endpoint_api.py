@@ -59,7 +59,7 @@ def test_the_pages_bone_weights_and_options_are_used(srv):
 
 
 @pytest.mark.parametrize("body, needle", [
-    ({"bone": 0, "method": "bbw"}, "tetrahedra T"),           # a surface-only 3D rig
+    ({"bone": 0, "method": "bbw"}, "BBW needs a volume"),     # a surface-only 3D rig
     ({"bone": 0, "method": "smooth"}, '"method": expected one of projection'),
     ({"bone": 5, "method": "idw"}, '"bone": bone 5 does not exist'),
     ({"bone": True, "method": "idw"}, '"bone": expected a bone index'),
@@ -111,7 +111,7 @@ def test_an_endpoint_job_runs_reports_progress_and_answers_its_column():
     rig = _grid_rig()
     with ViewerServer(rig) as srv:
         info = request(srv, "GET", "/api/rig", token=True).json()
-        assert info["endpoint_methods"] == ["projection", "idw", "heat", "bbw", "bbw-joints"]
+        assert set(info["endpoint_methods"]) == {"projection", "idw", "bbw", "bbw-joints"}
         assert info["methods"] == ["lbs", "dqs", "stbs-lbs", "stbs-dqs"]
         r = post_json(srv, "/api/jobs/endpoint", {"bone": 1, "method": "bbw",
                                                   "options": {"tol": 1e-9}})
@@ -119,7 +119,7 @@ def test_an_endpoint_job_runs_reports_progress_and_answers_its_column():
         jid = r.json()["job"]
         st = _wait(srv, jid)
         assert st["state"] == "done" and st["bone"] == 1 and st["method"] == "bbw"
-        assert st["done"] == st["total"] == 2          # a step per bone solved
+        assert st["done"] == st["total"] and st["total"] >= 1     # steps of the solve
         ref = _dense(stbs.weights.endpoint_weights(rig.V, rig.skeleton, method="bbw",
                                                    W=rig.W, F=rig.F, tol=1e-9))[:, 1]
         assert ref.min() == 0 and ref.max() == 1
@@ -133,11 +133,12 @@ def test_an_endpoint_job_runs_reports_progress_and_answers_its_column():
 
 def test_the_methods_a_rig_cannot_compute_are_not_listed_and_refused(srv):
     info = request(srv, "GET", "/api/rig", token=True).json()
-    assert info["endpoint_methods"] == ["projection", "idw", "heat"]    # a surface, no tets
+    assert set(info["endpoint_methods"]) == {"projection", "idw", "heat"}  # a surface
     r = post_json(srv, "/api/jobs/endpoint", {"bone": 0, "method": "bbw"})
     assert r.status == 400
     msg = r.json()["error"]
-    assert "'bbw' cannot work on this rig" in msg and "projection, idw, heat" in msg
+    assert "'bbw' cannot work on this rig" in msg
+    assert all(m in msg.split("takes ")[1] for m in ("projection", "idw", "heat"))
     for body, words in (({"bone": 0, "method": "idw", "alpha": 2}, "unexpected key 'alpha'"),
                         ({"bone": 0, "method": "idw", "options": {"colour": 1}},
                          "key 'colour'"),
@@ -164,7 +165,7 @@ def test_one_job_at_a_time_and_a_cancel_stops_it_at_its_next_step(srv, monkeypat
     def slow(rig, W, bone, method, options, progress=None):
         for k in range(10_000):     # until cancelled: progress raises then
             steps.append(k)
-            progress(k, 10_000)
+            progress("solving", k, 10_000)
             release.wait(0.01)
         return np.zeros(len(rig.V))
 

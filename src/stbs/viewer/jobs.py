@@ -43,16 +43,11 @@ class Cancelled(Exception):
 
 
 def endpoint_methods(rig: Rig) -> list[str]:
-    """The endpoint methods that can work on ``rig``: ``projection`` and ``idw``
-    always, ``heat`` with triangles, ``bbw`` and ``bbw-joints`` with tetrahedra (3D)
-    or triangles (2D)."""
-    from ..weights import ENDPOINT_METHODS
+    """The endpoint methods that can work on ``rig`` (:func:`stbs.rig.endpoint_methods`:
+    no BBW on a 3D surface rig without its volume, no heat in 2D)."""
+    from ..rig import endpoint_methods as methods
 
-    have_F, have_T = rig.F is not None, rig.T is not None
-    solved = have_T or (rig.skeleton.dim == 2 and have_F)
-    ok = {"projection": True, "idw": True, "heat": have_F, "bbw": solved,
-          "bbw-joints": solved}
-    return [m for m in ENDPOINT_METHODS if ok.get(m, False)]
+    return list(methods(rig))
 
 
 def read_endpoint_request(obj: Any, rig: Rig, *, nested: bool) -> tuple[int, str, Any, dict]:
@@ -100,23 +95,23 @@ def read_endpoint_request(obj: Any, rig: Rig, *, nested: bool) -> tuple[int, str
 
 
 def endpoint_column(rig: Rig, W, bone: int, method: str, options: dict,
-                    progress: Callable[[int, int], None] | None = None) -> np.ndarray:
-    """Bone ``bone``'s endpoint weights by ``method`` on the rig's rest mesh: (n,)
-    float64 in [0, 1]. ``W``: the bone weights to use (the rig's when None)."""
-    from ..weights import endpoint_weights
+                    progress: Callable[[str, int, int], None] | None = None) -> np.ndarray:
+    """Bone ``bone``'s endpoint weights by ``method``, solved again on what the rig
+    holds (:func:`stbs.rig.rig_endpoint_weights`: its rest mesh, or the volume it
+    kept): (n,) float64 in [0, 1]. ``W``: the bone weights to use (the rig's when
+    None); ``progress(stage, done, total)`` as that function takes it (raise from it
+    to cancel)."""
+    from ..rig import rig_endpoint_weights
 
     try:
         # errstate is per thread: an option that overflows (alpha=1e308) gives a
         # non-finite column, refused below, and no RuntimeWarning on stderr.
         with np.errstate(all="ignore"):
-            E = endpoint_weights(rig.V, rig.skeleton, method=method,
-                                 W=rig.W if W is None else W, F=rig.F, T=rig.T,
-                                 progress=progress if method.startswith("bbw") else None,
-                                 **options)
+            E = rig_endpoint_weights(rig, method, bones=[bone], W=W, progress=progress,
+                                     **options)
     except (ValueError, TypeError, ArithmeticError) as exc:
         raise Refusal(400, one_line(exc)) from None
-    col = E[:, [bone]].toarray()[:, 0] if hasattr(E, "toarray") else np.asarray(E)[:, bone]
-    col = np.asarray(col, dtype=np.float64)
+    col = np.asarray(E[:, bone], dtype=np.float64)
     if not np.isfinite(col).all():
         given = ", ".join(f"{k}={show(v)}" for k, v in options.items()) or "no options"
         raise Refusal(400, f"method {method!r} with {given} gives endpoint weights that are "

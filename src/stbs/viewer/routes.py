@@ -306,16 +306,12 @@ def _start_endpoint(req: Request, app) -> Reply:
     bone, method, W, options = jobs.read_endpoint_request(req.json(), rig, nested=True)
     can = jobs.endpoint_methods(rig)
     if method not in can:
-        raise Refusal(400, f'"method": {method!r} cannot work on this rig (it needs '
-                           f"{'tetrahedra' if rig.skeleton.dim == 3 else 'triangles'}); "
-                           f"this rig takes {', '.join(can)}")
+        raise Refusal(400, f'"method": {method!r} cannot work on this rig; it takes '
+                           f"{', '.join(can)}")
 
     def work(job: jobs.Job):
-        job.progress("computing", 0, 1)
-        col = jobs.endpoint_column(rig, W, bone, method, options,
-                                   progress=lambda done, total: job.progress("solving",
-                                                                             done, total))
-        return bone, method, col
+        return bone, method, jobs.endpoint_column(rig, W, bone, method, options,
+                                                  progress=job.progress)
 
     job = app.jobs.start("endpoint", work, {"bone": bone, "method": method})
     return json_reply({"job": job.id, **job.status()})
