@@ -112,6 +112,25 @@ def skeleton_from_joints(J, parent, names: Sequence[str], *, V=None, F=None, W=N
     Skeleton
         Bone ``i`` starts at ``J[i]``; joints ``0..j-1`` are ``J``, leaf tails follow.
     """
+    J, parent, names = _checked_joints(J, parent, names)
+    j = J.shape[0]
+    pts = J if V is None else np.vstack([J, np.asarray(V, dtype=float)])
+    size = float(np.linalg.norm(np.ptp(pts, axis=0))) or 1.0
+    BE = np.zeros((j, 2), dtype=np.int64)
+    BE[:, 0] = np.arange(j)
+    leaves, dirs, base = _bone_ends(J, parent, 1e-6 * size, size, BE)
+    C = [J[i] for i in range(j)]
+    if leaves:
+        lengths, D = _leaf_tails(J, leaves, dirs, base, V=V, F=F, W=W, frames=frames,
+                                 size=size)
+        for k, i in enumerate(leaves):
+            C.append(J[i] + lengths[k] * D[k])
+            BE[i, 1] = len(C) - 1
+    P = np.where(parent >= 0, parent, -1)
+    return Skeleton(np.array(C), BE, names=names, P=P)
+
+
+def _checked_joints(J, parent, names):
     J = _checks.real_array("J", J, ndim=2)
     if J.shape[1] != 3:
         raise ValueError(f"J must have shape (j, 3), got {J.shape}")
@@ -122,14 +141,15 @@ def skeleton_from_joints(J, parent, names: Sequence[str], *, V=None, F=None, W=N
     names = [str(s) for s in names]
     if len(names) != j:
         raise ValueError(f"names must have {j} entries (one per joint), got {len(names)}")
-    pts = J if V is None else np.vstack([J, np.asarray(V, dtype=float)])
-    size = float(np.linalg.norm(np.ptp(pts, axis=0))) or 1.0
-    tol = 1e-6 * size
+    return J, parent, names
+
+
+def _bone_ends(J, parent, tol: float, size: float, BE):
+    """Each joint's bone towards its chosen child (``BE[i, 1]``, set here); for the
+    leaves (no child elsewhere): ``(leaves, dirs, base)``, their direction (None:
+    unknown) and a first length."""
+    j = J.shape[0]
     subtree = _subtree_sizes(parent)
-    C = [J[i] for i in range(j)]
-    BE = np.zeros((j, 2), dtype=np.int64)
-    BE[:, 0] = np.arange(j)
-    leaves, dirs, base = [], [], []
     children: list[list[int]] = [[] for _ in range(j)]
     for c, q in enumerate(parent.tolist()):
         if q >= 0:
@@ -141,62 +161,65 @@ def skeleton_from_joints(J, parent, names: Sequence[str], *, V=None, F=None, W=N
         q = parent[i]
         if q >= 0:
             away[i] = q if np.linalg.norm(J[i] - J[q]) > tol else away[q]
+    leaves, dirs, base = [], [], []
     for i in range(j):
         kids = [c for c in children[i] if np.linalg.norm(J[c] - J[i]) > tol]
         up = J[i] - J[away[i]] if away[i] >= 0 else None
         if kids:
-            if up is not None:
-                u = up / np.linalg.norm(up)
-                best = max(kids, key=lambda c: float((J[c] - J[i]) @ u)
-                           / np.linalg.norm(J[c] - J[i]))
-            else:
-                best = max(kids, key=lambda c: (subtree[c], -c))
-            BE[i, 1] = best
+            BE[i, 1] = _best_child(J, i, kids, up, subtree)
             continue
         leaves.append(i)
         base.append(0.5 * np.linalg.norm(up) if up is not None else 0.1 * size)
-        if up is not None:
-            dirs.append(up / np.linalg.norm(up))
-        else:
-            dirs.append(None)
-    if leaves:
-        Vn = None if V is None else np.asarray(V, dtype=float)
-        Wd = None
-        if W is not None and Vn is not None:
-            Wd = W.toarray() if hasattr(W, "toarray") else np.asarray(W, dtype=float)
-        for k, i in enumerate(leaves):
-            moved = None
-            if Wd is not None:
-                m = Wd[:, i] >= 0.5
-                if m.sum() >= 3:
-                    moved = Vn[m] - J[i]
-            if dirs[k] is None:
-                axes = np.eye(3) if frames is None else np.asarray(frames[i], dtype=float).T
-                if moved is not None:
-                    spread = [np.abs(moved @ (a / np.linalg.norm(a))).sum() for a in axes]
-                    a = axes[int(np.argmax(spread))]
-                    a = a / np.linalg.norm(a)
-                    dirs[k] = a if (moved @ a).sum() >= 0 else -a
-                else:
-                    a = axes[1]
-                    dirs[k] = a / np.linalg.norm(a)
-            if moved is not None:
-                reach = float(np.quantile(moved @ dirs[k], 0.9))
-                if reach > 0.05 * base[k]:
-                    base[k] = reach
-        lengths = np.array(base)
-        D = np.array(dirs)
-        if V is not None and F is not None:
-            Fn = _checks.index_array("F", F, ndim=2, shape=(None, 3))
-            hit = _first_hits(J[leaves], D, np.asarray(V, dtype=float), Fn)
-            inside = np.isfinite(hit)
-            lengths = np.where(inside, np.minimum(lengths, _INSIDE * hit), lengths)
-        lengths = np.maximum(lengths, 1e-3 * size)
-        for k, i in enumerate(leaves):
-            C.append(J[i] + lengths[k] * D[k])
-            BE[i, 1] = len(C) - 1
-    P = np.where(parent >= 0, parent, -1)
-    return Skeleton(np.array(C), BE, names=names, P=P)
+        dirs.append(up / np.linalg.norm(up) if up is not None else None)
+    return leaves, dirs, base
+
+
+def _best_child(J, i: int, kids: list[int], up, subtree) -> int:
+    """The child a joint's bone runs to: the straightest on from ``up``, else (a root)
+    the one with the largest subtree."""
+    if up is None:
+        return max(kids, key=lambda c: (subtree[c], -c))
+    u = up / np.linalg.norm(up)
+    return max(kids, key=lambda c: float((J[c] - J[i]) @ u) / np.linalg.norm(J[c] - J[i]))
+
+
+def _leaf_tails(J, leaves, dirs, base, *, V, F, W, frames, size: float):
+    """Leaf bones' lengths (k,) and directions (k, 3): as far as the vertices they move
+    reach, kept inside the mesh."""
+    Vn = None if V is None else np.asarray(V, dtype=float)
+    Wd = None
+    if W is not None and Vn is not None:
+        Wd = W.toarray() if hasattr(W, "toarray") else np.asarray(W, dtype=float)
+    for k, i in enumerate(leaves):
+        moved = None
+        if Wd is not None and (Wd[:, i] >= 0.5).sum() >= 3:
+            moved = Vn[Wd[:, i] >= 0.5] - J[i]
+        if dirs[k] is None:
+            dirs[k] = _root_leaf_direction(i, moved, frames)
+        if moved is not None:
+            reach = float(np.quantile(moved @ dirs[k], 0.9))
+            if reach > 0.05 * base[k]:
+                base[k] = reach
+    lengths = np.array(base)
+    D = np.array(dirs)
+    if V is not None and F is not None:
+        Fn = _checks.index_array("F", F, ndim=2, shape=(None, 3))
+        hit = _first_hits(J[leaves], D, Vn, Fn)
+        inside = np.isfinite(hit)
+        lengths = np.where(inside, np.minimum(lengths, _INSIDE * hit), lengths)
+    return np.maximum(lengths, 1e-3 * size), D
+
+
+def _root_leaf_direction(i: int, moved, frames) -> np.ndarray:
+    """A lone joint's bone: along the axis of its frame that best spans the vertices it
+    moves (pointing towards them), else its frame's y axis."""
+    axes = np.eye(3) if frames is None else np.asarray(frames[i], dtype=float).T
+    if moved is None:
+        return axes[1] / np.linalg.norm(axes[1])
+    spread = [np.abs(moved @ (a / np.linalg.norm(a))).sum() for a in axes]
+    a = axes[int(np.argmax(spread))]
+    a = a / np.linalg.norm(a)
+    return a if (moved @ a).sum() >= 0 else -a
 
 
 def rig_from_joints(V, F, W, bind, parent, names: Sequence[str], *,
