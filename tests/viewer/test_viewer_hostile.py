@@ -278,6 +278,27 @@ def test_handler_threads_are_bounded(monkeypatch):
         assert request(s, "GET", "/api/pose", token=True).status == 200
 
 
+def test_a_handler_slot_is_released_once_whoever_ends_first():
+    # a Ctrl-C while the handler's thread starts: the serving thread gives the slot back
+    # unless the handler's thread claimed it, which then gives it back itself; a second
+    # release would raise (BoundedSemaphore) and replace the KeyboardInterrupt
+    for thread_first in (True, False):
+        sem = threading.BoundedSemaphore(1)
+        sem.acquire()
+        slot = handler_module._Slot(sem)
+        if thread_first:
+            slot.claim()
+            slot.release_if_unclaimed()         # the serving thread: not its to release
+            assert not sem.acquire(blocking=False)
+            slot.release()                      # the handler's thread, when it ends
+        else:
+            slot.release_if_unclaimed()
+            slot.claim()                        # a thread that started late
+            slot.release()
+        assert sem.acquire(blocking=False)      # released exactly once
+        sem.release()
+
+
 # ---------------------------------------------------------------- framing
 def head(s, lines: list[str], body: bytes = b"", method: str = "POST",
          path: str = "/api/pose") -> bytes:

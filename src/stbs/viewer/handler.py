@@ -54,6 +54,34 @@ class _BodyLost(Exception):
     """The connection broke while its request body was read: nothing to answer."""
 
 
+class _Slot:
+    """One handler slot of the semaphore, released exactly once by its claimer."""
+
+    def __init__(self, slots: threading.BoundedSemaphore):
+        self._slots = slots
+        self._lock = threading.Lock()
+        self._claimed = False
+        self._released = False
+
+    def claim(self) -> None:
+        with self._lock:
+            self._claimed = True
+
+    def release(self) -> None:
+        with self._lock:
+            if self._released:
+                return
+            self._released = True
+        self._slots.release()
+
+    def release_if_unclaimed(self) -> None:
+        with self._lock:
+            if self._claimed:
+                return
+            self._claimed = True    # a thread starting late finds it taken: it releases
+        self.release()             # only what it claimed, which is nothing now
+
+
 class HTTPServer(ThreadingHTTPServer):
     """A thread per connection, at most MAX_HANDLERS at once; the rest wait in a listen
     queue of REQUEST_QUEUE (the default of 5 resets connections under a burst).
@@ -79,17 +107,23 @@ class HTTPServer(ThreadingHTTPServer):
             if self.closing:
                 self.shutdown_request(request)
                 return
+        # The slot is released once, by whoever claims it: the handler's thread when it
+        # runs, else this thread when starting it failed (a Ctrl-C may arrive while the
+        # thread starts: it must neither release the slot twice nor be lost).
+        slot = _Slot(self._slots)
         try:
-            super().process_request(request, client_address)
+            super().process_request(request, (client_address, slot))
         except BaseException:
-            self._slots.release()
+            slot.release_if_unclaimed()
             raise
 
-    def process_request_thread(self, request, client_address) -> None:
+    def process_request_thread(self, request, address) -> None:
+        client_address, slot = address
+        slot.claim()
         try:
             super().process_request_thread(request, client_address)
         finally:
-            self._slots.release()
+            slot.release()
 
     def handle_error(self, request, client_address) -> None:
         # A connection the client dropped, reset or let time out is no error of ours;
