@@ -129,8 +129,12 @@ def test_turning_the_hips_turns_the_legs_as_forward_kinematics_does(human):
     assert (~sk.connected & (sk.parents >= 0)).sum() == 4          # arms and legs hang
     human.js("stbsViewer.setPose({})")
     sent = human.js("() => stbsViewer.turnBone('hips', [0.3, 0, 1], 35)")
-    # one local rotation on the branching bone, nothing else: the FK form
-    assert set(sent) == {"rotate", "degrees"} and set(sent["rotate"]) == {"hips"}
+    # one local rotation on the branching bone, nothing else: the FK form (the server
+    # makes it from the page's world transforms; the other bones' local rotations are
+    # the identity up to rounding)
+    assert set(sent) == {"rotate", "degrees"} and "hips" in sent["rotate"]
+    others = {k: r["angle"] for k, r in sent["rotate"].items() if k != "hips"}
+    assert max(map(abs, others.values()), default=0) < 1e-9, others
     L = np.tile(np.eye(3), (sk.n_bones, 1, 1))
     L[0] = axis_angle_to_matrix(np.array([0.3, 0, 1.0]), np.radians(35))
     pose = stbs.forward_kinematics(sk, rotations=L)

@@ -129,9 +129,10 @@ def test_a_drag_off_the_joints_orbits_and_keeps_the_pose(tube):
     before = tube.js("stbsViewer.getPose()")
     cam0 = tube.js("stbsViewer.camera()")
     m = tube.page.mouse
-    m.move(20, H - 20)
+    x0, y0 = cam0["left"] + 20, cam0["top"] + cam0["height"] - 20     # a corner of the view
+    m.move(x0, y0)
     m.down()
-    m.move(80, H - 60, steps=5)
+    m.move(x0 + 60, y0 - 40, steps=5)
     m.up()
     assert tube.js("stbsViewer.getPose()") == before
     assert tube.js("stbsViewer.camera()")["view"] != cam0["view"]

@@ -281,7 +281,8 @@ def test_side_by_side_draws_two_methods_and_keeps_picking(plate):
     # joints are found in the left view and dragged there; the right view drags too
     plate.js("stbsViewer.setCompare('lbs')")
     screen = np.array(plate.js("stbsViewer.jointScreenPositions()"))
-    assert screen[:, 0].max() < w // 2
+    half = plate.js("stbsViewer.camera()")          # the left view, on the page
+    assert screen[:, 0].max() < half["left"] + half["width"]
     J0 = np.array(plate.js("stbsViewer.posedJoints()"))
     x, y = screen[10]
     _drag(plate, x, y, 20, 15)
@@ -290,10 +291,10 @@ def test_side_by_side_draws_two_methods_and_keeps_picking(plate):
     J1 = np.array(plate.js("stbsViewer.posedJoints()"))
     # the same joint in the right view (one there that the panels do not cover)
     free = plate.js("""h => stbsViewer.jointScreenPositions().then(s => s.map(([x, y]) =>
-        document.elementFromPoint(x + h, y)?.id === 'view'))""", w // 2)
+        document.elementFromPoint(x + h, y)?.id === 'view'))""", half["width"])
     k = max(j for j in range(len(free)) if free[j] and j != 10)
     x, y = plate.js("stbsViewer.jointScreenPositions()")[k]
-    _drag(plate, x + w // 2, y, -15, 10)
+    _drag(plate, x + half["width"], y, -15, 10)
     J2 = np.array(plate.js("stbsViewer.posedJoints()"))
     moved = np.linalg.norm(J2 - J1, axis=1)
     assert moved[k] > 1e-3 and np.delete(moved, k).max() < 1e-5

@@ -6,18 +6,13 @@
 
 import * as THREE from "three";
 import { mirrorBones } from "./mirror.js";
-import { mirrorEdit } from "./ik.js";
+import { copyWorld, mirrorEdit, worldJSON } from "./ik.js";
 
 const PICK_PX = 14;     // a joint is picked within this many CSS pixels of the pointer
 const BONE_PX = 6;      // a bone is picked by a click within this many CSS pixels of it
 const CLICK_PX = 4;     // a press and release closer than this is a click, not a drag
 const DRAG_MODES = ["stretch", "ik"];
 const DEG = 180 / Math.PI;
-
-function copyWorld(w) {
-  return { R: w.R.map((M) => M.map((r) => r.slice())), A: w.A.map((a) => a.slice()),
-           S: w.S.slice(), T: w.T.map((t) => t.slice()) };
-}
 
 function copy(x) { return JSON.parse(JSON.stringify(x)); }
 
@@ -215,18 +210,18 @@ export class PoseEditor {
     if (d.kind === "gizmo") {
       const angle = this.gizmo.turn(d.turn, p);
       if (angle === 0 && !d.moved) return;
-      edited = this.bones.rotateBone(w, d.bone, d.turn.axis.toArray(), angle);
+      edited = this.bones.rotateBone(w, d.bone, d.turn.axis, angle);
     } else {
       const hit = this.onPlane(p.ndc);
       if (!hit) return;
-      const at = d.start.clone().add(hit.sub(d.grab)).toArray();
-      if (this.bones.dim === 2) at[2] = 0;
+      const at = d.start.clone().add(hit.sub(d.grab));
+      if (this.bones.dim === 2) at.z = 0;
       edited = d.kind === "ik" ? this.bones.ikJoint(w, d.joint, at) : this.bones.stretchJoint(w, d.joint, at);
     }
     if (!edited) return;
     edited = this.mirrored(d.world, edited);
     if (!d.moved) { d.cmd = this.begin(d.kind === "gizmo" ? "turn bone" : `drag joint (${d.kind})`); d.moved = true; }
-    this.sendFor(d.cmd, this.bones.poseObject(edited).pose);
+    this.sendFor(d.cmd, { world: worldJSON(edited) });
   }
 
   onUp(e) {
@@ -301,7 +296,8 @@ export class PoseEditor {
   }
 
   /**
-   * A slider move: the current pose in the forward-kinematics form with the selected
+   * A slider move: the current pose in the forward-kinematics form (the server's pose
+   * object) with the selected
    * bone's stretch and end twist set (rotations, offsets and the other twists kept);
    * the bones below follow by forward kinematics, offset children included. With the
    * mirror on, the mirror bone gets the same stretch and the opposite twist.
@@ -314,9 +310,15 @@ export class PoseEditor {
     if (!this.sliding) {
       this.slideCmd = this.begin("slider");
       this.sliding = true;
-      this.slideBase = this.bones.fkObject(this.bones.world());
+      // the server's pose object of the pose shown (its forward-kinematics form), once
+      // the edit before has been sent
+      this.slideBase = Promise.resolve(this.poses.sending).catch(() => {}).then(() => this.poses.get());
     }
-    const pose = copy(this.slideBase);
+    return this.poses.track(this.slideTo(this.slideCmd, i, s, t));
+  }
+
+  async slideTo(cmd, i, s, t) {
+    const pose = copy(await this.slideBase);
     const set = (k, stretch, twist) => {
       const name = this.names[k];
       pose.stretch = Object.assign({}, pose.stretch, { [name]: stretch });
@@ -333,7 +335,7 @@ export class PoseEditor {
       const m = this.mirrorMap[i];
       if (m !== i) set(m, s, -t);
     }
-    return this.sendFor(this.slideCmd, pose);
+    return this.sendFor(cmd, pose);
   }
 
   /**
@@ -354,7 +356,7 @@ export class PoseEditor {
     await this.history.idle();
     await this.poses.idle();
     const w0 = b.world(), w = this.mirrored(w0, b.rotateBone(copyWorld(w0), i, axis, degrees / DEG));
-    await this.history.execute(this.command("turn bone", this.store.poseObject, b.poseObject(w).pose));
+    await this.history.execute(this.command("turn bone", this.store.poseObject, { world: worldJSON(w) }));
     return this.poses.get();
   }
 

@@ -465,7 +465,7 @@ class Viewer {
     do {
       await this.history.idle();
       await this.poses.idle();
-    } while (this.poses.sending);
+    } while (this.poses.sending || this.poses.preparing);
   }
 
   /** Posed joint positions (j x 3; rest position for a joint of no bone). */
@@ -585,11 +585,11 @@ function makeView(v) {
   };
   /** Put the camera and the orbit target back as saved by saveCamera(). */
   view.saveCamera = () => ({ camera: v.camera.clone(), target: v.controls.target.clone() });
-  view.restoreCamera = (saved) => {
+  view.restoreCamera = (saved) => {       // exactly as saved (no re-derivation by the controls)
     v.camera.copy(saved.camera);
     v.camera.updateProjectionMatrix();
     v.controls.target.copy(saved.target);
-    v.controls.update();
+    v.render();
   };
   return Object.freeze(view);
 }

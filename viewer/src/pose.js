@@ -1,6 +1,7 @@
 // Per-bone pose data for the shader (skin.js): rest frames, pose arrays, the
 // bone texture's rows, and the posed skeleton for drawing.
 
+import { Matrix4, Quaternion, Vector3 } from "three";
 import { TEXELS_PER_BONE } from "./skin.js";
 
 /** Rest frames of the bones, in 3D (2D rigs get z = 0), float64 (C: the rest joints,
@@ -43,27 +44,6 @@ export function restPose(rest, dim) {
   return { rotations, origins, stretch, twist };
 }
 
-/** (w, x, y, z) of a 3x3 rotation given row-major as m[r][c] (Shepperd's method). */
-function matToQuat(m) {
-  const tr = m[0][0] + m[1][1] + m[2][2];
-  let w, x, y, z;
-  if (tr > 0) {
-    const s = 2 * Math.sqrt(tr + 1);
-    w = 0.25 * s; x = (m[2][1] - m[1][2]) / s; y = (m[0][2] - m[2][0]) / s; z = (m[1][0] - m[0][1]) / s;
-  } else if (m[0][0] > m[1][1] && m[0][0] > m[2][2]) {
-    const s = 2 * Math.sqrt(1 + m[0][0] - m[1][1] - m[2][2]);
-    w = (m[2][1] - m[1][2]) / s; x = 0.25 * s; y = (m[0][1] + m[1][0]) / s; z = (m[0][2] + m[2][0]) / s;
-  } else if (m[1][1] > m[2][2]) {
-    const s = 2 * Math.sqrt(1 + m[1][1] - m[0][0] - m[2][2]);
-    w = (m[0][2] - m[2][0]) / s; x = (m[0][1] + m[1][0]) / s; y = 0.25 * s; z = (m[1][2] + m[2][1]) / s;
-  } else {
-    const s = 2 * Math.sqrt(1 + m[2][2] - m[0][0] - m[1][1]);
-    w = (m[1][0] - m[0][1]) / s; x = (m[0][2] + m[2][0]) / s; y = (m[1][2] + m[2][1]) / s; z = 0.25 * s;
-  }
-  const l = Math.hypot(w, x, y, z);
-  return [w / l, x / l, y / l, z / l];
-}
-
 function embed(R, dim) {   // a d x d rotation as 3x3 rows
   if (dim === 3) return R;
   return [[R[0][0], R[0][1], 0], [R[1][0], R[1][1], 0], [0, 0, 1]];
@@ -92,14 +72,13 @@ export function packBones(rest, pose, dim, out) {
     out.set([ap[0], ap[1], ap[2], rest.len[i]], row + 12);
     out.set([a[0], a[1], a[2], 0], row + 16);
     out.set([rest.u[3 * i], rest.u[3 * i + 1], rest.u[3 * i + 2], 0], row + 20);
-    const [w, x, y, z] = matToQuat(R);
-    out.set([x, y, z, w], row + 24);
+    const q = new Quaternion().setFromRotationMatrix(new Matrix4().set(
+      R[0][0], R[0][1], R[0][2], 0, R[1][0], R[1][1], R[1][2], 0, R[2][0], R[2][1], R[2][2], 0, 0, 0, 0, 1));
+    out.set([q.x, q.y, q.z, q.w], row + 24);
     // dual part of x -> a' + R (x - a): t = a' - R a, qd = (t, 0) q / 2
-    const t = [0, 1, 2].map((r) => ap[r] - (R[r][0] * a[0] + R[r][1] * a[1] + R[r][2] * a[2]));
-    const dx = 0.5 * (w * t[0] + t[1] * z - t[2] * y);
-    const dy = 0.5 * (w * t[1] + t[2] * x - t[0] * z);
-    const dz = 0.5 * (w * t[2] + t[0] * y - t[1] * x);
-    const dw = -0.5 * (t[0] * x + t[1] * y + t[2] * z);
+    const t = new Vector3(...a).applyQuaternion(q).negate().add(new Vector3(...ap));
+    const d = new Quaternion(t.x, t.y, t.z, 0).multiply(q);
+    const [dx, dy, dz, dw] = [0.5 * d.x, 0.5 * d.y, 0.5 * d.z, 0.5 * d.w];
     out.set([dx, dy, dz, dw], row + 28);
   }
   return out;
@@ -151,6 +130,7 @@ export class PoseLink {
     this.report = report;
     this.pending = null;
     this.sending = null;
+    this.preparing = null;
   }
 
   /** GET /api/pose: the current pose object, as the server keeps it. */
@@ -161,15 +141,24 @@ export class PoseLink {
     this.store.setPose(await this.apiJSON("/api/pose/bones"), object);
   }
 
-  /** POST a pose object and show it; resolves to the server's pose. */
+  /** POST a pose and show it; resolves to the server's pose object. `pose`: a pose
+   * object (a pose file's, POST /api/pose), or {world} (the page's world form of a pose,
+   * {R, A, S, T}, POST /api/pose/bones: the server makes its forward-kinematics pose). */
   async post(pose) {
-    const reply = await this.apiJSON("/api/pose", {
-      method: "POST", headers: { "Content-Type": "application/json" }, body: JSON.stringify(pose) });
+    const options = (body) => ({ method: "POST", headers: { "Content-Type": "application/json" },
+                                 body: JSON.stringify(body) });
+    if (pose && pose.world) {
+      const reply = await this.apiJSON("/api/pose/bones", options(pose.world));
+      this.store.setPose(reply.bones, reply.pose);
+      return reply.pose;
+    }
+    const reply = await this.apiJSON("/api/pose", options(pose));
     await this.fetch(pose);
     return reply.pose;
   }
 
-  /** Interactive edits: the latest pose wins; resolves when all sent poses are shown. */
+  /** Interactive edits (pose objects or {world}): the latest pose wins; resolves when
+   * all sent poses are shown. */
   send(pose) {
     this.pending = pose;
     if (!this.sending) {
@@ -186,8 +175,16 @@ export class PoseLink {
     return this.sending;
   }
 
-  /** Resolves once no sent pose is in flight. */
+  /** Count an edit whose pose is still being made (a promise that sends it) as in
+   * flight: idle() waits for it too. Returns the promise. */
+  track(p) {
+    this.preparing = p;
+    p.finally(() => { if (this.preparing === p) this.preparing = null; }).catch(() => {});
+    return p;
+  }
+
+  /** Resolves once no sent pose (or one being made) is in flight. */
   async idle() {
-    while (this.sending) await this.sending.catch(() => {});
+    while (this.sending || this.preparing) await (this.sending || this.preparing).catch(() => {});
   }
 }
