@@ -50,6 +50,7 @@ import contextlib
 import os
 import warnings
 from collections.abc import Iterator, Mapping
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -344,9 +345,10 @@ def _primitives(f: GltfFile, node: int, m: int):
                           components=_positions(f))
         F = _triangles(f, prim, what, len(V))
         if F is None:
-            # stacklevel: this generator, _read, read_gltf, its caller
+            # stacklevel: this generator, _read_skinned or _read_rigid, _read, read_gltf,
+            # its caller
             warnings.warn(f"{str(f.path)!r}: {what} is points or lines (mode "
-                          f"{prim.get('mode')}); skipped", UserWarning, stacklevel=4)
+                          f"{prim.get('mode')}); skipped", UserWarning, stacklevel=5)
             continue
         yield k, what, at, _morphed(f, prim, nobj, f.items("meshes")[m], V, what), F
 
@@ -360,18 +362,19 @@ def _placed(V: np.ndarray, F: np.ndarray, X: np.ndarray) -> tuple[np.ndarray, np
     return V, F
 
 
-def _read(f: GltfFile, skin, mesh, rigid: bool = True) -> tuple[Rig, Scene, Joints]:
+def _check_extensions(f: GltfFile) -> None:
+    """Refuse a file that requires a mesh compression extension stbs cannot decode."""
     req = f.get(f.doc, "extensionsRequired", "array", "glTF", [])
     bad = [e for e in req if e in _UNSUPPORTED]
     if bad:
         raise f.error("geometry stbs can decode (no mesh compression extension required)",
                       f"extensionsRequired {bad[0]!r}")
-    scene = Scene(f)
-    chosen = _select(f, scene, skin, mesh)
-    skins: list[int] = []
-    for _, _, s in chosen:
-        if s not in skins:
-            skins.append(s)
+
+
+def _joint_nodes(scene: Scene, skins: list[int]
+                 ) -> tuple[list[int], np.ndarray, dict[int, int]]:
+    """The joint nodes of ``skins`` (their union, in the order the skins list them), the
+    inverse bind matrix of each (from the first skin listing it), and node -> bone."""
     nodes: list[int] = []
     ibm: list[np.ndarray] = []
     col: dict[int, int] = {}
@@ -382,58 +385,106 @@ def _read(f: GltfFile, skin, mesh, rigid: bool = True) -> tuple[Rig, Scene, Join
                 col[node] = len(nodes)
                 nodes.append(node)
                 ibm.append(M[j])
-    IBM = np.array(ibm)
-    b = len(nodes)
+    return nodes, np.array(ibm), col
+
+
+def _binds(f: GltfFile, IBM: np.ndarray) -> np.ndarray:
+    """The binds ``B_j = IBM_j^-1`` of the joints."""
     try:
         bind = np.linalg.inv(IBM)
     except np.linalg.LinAlgError:
         raise f.error("invertible inverse bind matrices", "a singular one") from None
     if not np.isfinite(bind).all():
         raise f.error("invertible inverse bind matrices", "a singular one")
-    parent = np.full(b, -1, dtype=np.int64)
+    return bind
+
+
+def _joint_parents(scene: Scene, nodes: list[int], col: dict[int, int]) -> np.ndarray:
+    """The parent bone of each bone: the nearest joint above its node (-1: none)."""
+    parent = np.full(len(nodes), -1, dtype=np.int64)
     up = scene.nearest_above(col)
     for i, node in enumerate(nodes):
         if up[node] >= 0:
             parent[i] = col[int(up[node])]
+    return parent
 
-    # ---- geometry
-    Vs, Fs, Ws, Es, prims = [], [], [], [], []
-    off = 0
+
+@dataclass
+class _Geometry:
+    """The primitives read so far, in the order they are stacked into the rig's ``V``,
+    ``F`` (indices into the stack) and ``W``; ``Es`` the endpoint weights (or None) of
+    the skinned ones; ``prims`` and ``parts`` where each skinned primitive and each
+    rigid part came from."""
+
+    Vs: list = field(default_factory=list)
+    Fs: list = field(default_factory=list)
+    Ws: list = field(default_factory=list)
+    Es: list = field(default_factory=list)
+    prims: list = field(default_factory=list)
+    parts: list = field(default_factory=list)
+    off: int = 0
+
+    def add(self, V: np.ndarray, F: np.ndarray, W: np.ndarray) -> int:
+        """Stack one primitive's vertices, triangles and weights; its first row."""
+        start = self.off
+        self.Vs.append(V)
+        self.Fs.append(F + start)
+        self.Ws.append(W)
+        self.off += len(V)
+        return start
+
+
+def _rebound(V: np.ndarray, W: np.ndarray, to_bone: np.ndarray, X: np.ndarray) -> np.ndarray:
+    """The file's rest pose of each vertex under the first skin's binds: ``V`` moved by
+    its weights' blend of ``X_j = B_j IBM_s,j`` (its own skin's bind to the first's)."""
+    tot = W.sum(axis=1)
+    w = (W / tot[:, None])[:, to_bone]
+    Xv = np.einsum("nj,jab->nab", w, X)
+    return np.einsum("nab,nb->na", Xv[:, :3, :3], V) + Xv[:, :3, 3]
+
+
+def _read_skinned(f: GltfFile, scene: Scene, chosen: list[tuple[int, int, int]],
+                  col: dict[int, int], bind: np.ndarray, geo: _Geometry) -> None:
+    """Stack the triangle primitives of the skinned meshes ``chosen`` into ``geo``, with
+    their weights over the bones."""
+    b = len(col)
     for node, m, s in chosen:
-        joints_s = scene.skin_joints(s)
-        to_bone = np.array([col[j] for j in joints_s])
+        to_bone = np.array([col[j] for j in scene.skin_joints(s)])
         # where this skin's bind differs from the first's: X_j = B_j IBM_s,j
         X = bind[to_bone] @ scene.inverse_binds(s)
         moved = not np.allclose(X, np.eye(4), atol=1e-9 * max(1.0, np.abs(X).max()))
         for k, what, at, V, F in _primitives(f, node, m):
             n = len(V)
             W, E = primitive_weights(f, at, n, to_bone, b, what)
-            tot = W.sum(axis=1)
             if moved:
-                # the file's rest pose of each vertex under the first skin's binds
-                w = (W / tot[:, None])[:, to_bone]
-                Xv = np.einsum("nj,jab->nab", w, X)
-                V = np.einsum("nab,nb->na", Xv[:, :3, :3], V) + Xv[:, :3, 3]
-            Vs.append(V)
-            Fs.append(F + off)
-            Ws.append(W)
-            Es.append(E)
-            prims.append({"node": int(node), "mesh": int(m), "primitive": k, "skin": int(s),
-                          "start": off, "count": n})
-            off += n
-    E = None
-    if any(e is not None for e in Es):
-        if any(e is None for e in Es):
-            raise f.error("_ENDPOINT_WEIGHTS_0 on every primitive or on none", "on some only")
-        E = np.vstack(Es)
+                V = _rebound(V, W, to_bone, X)
+            start = geo.add(V, F, W)
+            geo.Es.append(E)
+            geo.prims.append({"node": int(node), "mesh": int(m), "primitive": k,
+                              "skin": int(s), "start": start, "count": n})
 
-    # ---- meshes hung rigidly on a joint: drawn at N_node = G_j L (L: the nodes from
-    # below joint j down to the mesh node), so placing them at B_j L (B_j = IBM_j^-1,
-    # the bind the skinned meshes use) makes the skin matrix G_j IBM_j draw them at
-    # G_j L at any time, exactly
-    parts: list[dict] = []
+
+def _endpoint_rows(f: GltfFile, Es: list) -> np.ndarray | None:
+    """The skinned primitives' endpoint weights stacked, or None where none has them."""
+    if not any(e is not None for e in Es):
+        return None
+    if any(e is None for e in Es):
+        raise f.error("_ENDPOINT_WEIGHTS_0 on every primitive or on none", "on some only")
+    return np.vstack(Es)
+
+
+def _read_rigid(f: GltfFile, scene: Scene, col: dict[int, int], bind: np.ndarray,
+                endpoints: bool, geo: _Geometry) -> dict[int, tuple[int, int]]:
+    """Stack the meshes hung rigidly on a joint into ``geo``, each weighted 1 on its
+    joint's bone; the nodes they hang from below their joints -> (mesh node, bone).
+
+    Such a mesh is drawn at ``N_node = G_j L`` (``L``: the nodes from below joint ``j``
+    down to the mesh node), so placing it at ``B_j L`` (``B_j = IBM_j^-1``, the bind the
+    skinned meshes use) makes the skin matrix ``G_j IBM_j`` draw it at ``G_j L`` at any
+    time, exactly."""
+    b = len(col)
     carried: dict[int, tuple[int, int]] = {}
-    for node, m, joint, L in (scene.attached(set(col)) if rigid and mesh is None else []):
+    for node, m, joint, L in scene.attached(set(col)):
         X = bind[col[joint]] @ L
         x = node                 # the nodes from the mesh's up to (not) its joint's
         while x != joint and x not in carried:
@@ -442,21 +493,21 @@ def _read(f: GltfFile, skin, mesh, rigid: bool = True) -> tuple[Rig, Scene, Join
         for k, what, _, V, F in _primitives(f, node, m):
             n = len(V)
             V, F = _placed(V, F, X)
-            f.reserve(n * b * 8 * (2 + (E is not None)),
+            f.reserve(n * b * 8 * (2 + endpoints),
                       f"{what}: weights of {n} vertices over {b} joints")
             W = np.zeros((n, b))
             W[:, col[joint]] = 1.0
-            Vs.append(V)
-            Fs.append(F + off)
-            Ws.append(W)
-            parts.append({"node": int(node), "mesh": int(m), "primitive": k,
-                          "joint": int(joint), "start": off, "count": n})
-            off += n
-    if not Vs:
-        raise f.error("a skinned mesh with triangles", "points and lines only")
-    V = np.vstack(Vs)
-    F = np.vstack(Fs)
-    W = np.vstack(Ws)
+            start = geo.add(V, F, W)
+            geo.parts.append({"node": int(node), "mesh": int(m), "primitive": k,
+                              "joint": int(joint), "start": start, "count": n})
+    return carried
+
+
+def _in_drawn_space(f: GltfFile, scene: Scene, nodes: list[int], IBM: np.ndarray,
+                    bind: np.ndarray, parent: np.ndarray, V: np.ndarray
+                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``V``, ``IBM`` and the binds moved into the space the file draws its rest pose
+    in, where the skin matrices at rest are all one similarity (else unchanged)."""
     # Skin matrices G_j IBM_j that all scale by one factor c at rest (inverse binds
     # made in a mesh's own units, under an "armature" node scaled by c) cannot pose
     # rigid bones: the rig is then moved by Y, the root's skin matrix at rest (a
@@ -481,38 +532,78 @@ def _read(f: GltfFile, skin, mesh, rigid: bool = True) -> tuple[Rig, Scene, Join
         V = V @ Y[:3, :3].T + Y[:3, 3]
         IBM = IBM @ np.linalg.inv(Y)
         bind = Y @ bind
+    return V, IBM, bind
+
+
+def _check_magnitude(f: GltfFile, V: np.ndarray, bind: np.ndarray) -> None:
+    """Refuse vertex or joint positions beyond :data:`MAX_COORDINATE`."""
     # far beyond any real model (a planet in millimetres), and small enough that the
     # skeleton's geometry (squared distances, cross products) cannot overflow
     big = max(float(np.abs(V).max(initial=0)), float(np.abs(bind[:, :3, 3]).max()))
     if not big <= MAX_COORDINATE:
         raise f.error(f"vertex and joint positions of magnitude at most {MAX_COORDINATE:g}",
                       f"{big:g} (transforms too large)")
+
+
+def _make_rig(f: GltfFile, scene: Scene, skins: list[int], nodes: list[int],
+              bind: np.ndarray, parent: np.ndarray, V: np.ndarray, F: np.ndarray,
+              W: np.ndarray, meta: dict) -> Rig:
+    """The rig: the file's own bone table where stbs wrote one, else bones from the
+    joints' bind positions (:func:`stbs.rig.rig_from_joints`)."""
     names = _names(scene, nodes)
-    meta = {"gltf": {"file": f.path.name, "skins": [int(s) for s in skins],
-                     "joints": [int(j) for j in nodes], "primitives": prims,
-                     "rigid": parts, "select": {"skin": skin, "mesh": mesh, "rigid": rigid}}}
     A = bind[:, :3, 3]
     size = float(np.linalg.norm(np.ptp(np.vstack([V, A]), axis=0))) or 1.0
     sk = read_bone_table(f, skins, nodes, A, parent, size)
     try:
         if sk is None:
-            rig = rig_from_joints(V, F, W, bind, parent, names, meta=meta)
-        else:
-            rig = Rig(V=V, F=F, W=W / W.sum(axis=1, keepdims=True), skeleton=sk, meta=meta)
+            return rig_from_joints(V, F, W, bind, parent, names, meta=meta)
+        return Rig(V=V, F=F, W=W / W.sum(axis=1, keepdims=True), skeleton=sk, meta=meta)
     except ValueError as exc:
         raise f.error("joints whose bind positions make a skeleton", str(exc)) from None
-    if E is not None:
-        if parts:
-            # a rigid part keeps no endpoint weights in the file (it is written back as
-            # it was): eq. 8's projection onto its bone (stbs.weights imported only here:
-            # it is heavy, and reading a rig needs it only in this case)
-            from ...weights.endpoint import projection
 
-            rows = np.arange(len(E), len(V))
-            E = np.vstack([E, np.zeros((len(rows), b))])
-            cols = np.argmax(W[rows], axis=1)
-            E[rows, cols] = projection(rig.V[rows], rig.skeleton)[np.arange(len(rows)), cols]
-        rig = rig.replace(E=E)
+
+def _with_rigid_endpoints(E: np.ndarray, W: np.ndarray, rig: Rig) -> np.ndarray:
+    """``E`` of the skinned rows, with the rigid parts' rows after them: eq. 8's
+    projection onto their bone (a rigid part keeps no endpoint weights in the file; it
+    is written back as it was)."""
+    # stbs.weights imported only here: it is heavy, and reading a rig needs it only in
+    # this case
+    from ...weights.endpoint import projection
+
+    rows = np.arange(len(E), len(rig.V))
+    E = np.vstack([E, np.zeros((len(rows), W.shape[1]))])
+    cols = np.argmax(W[rows], axis=1)
+    E[rows, cols] = projection(rig.V[rows], rig.skeleton)[np.arange(len(rows)), cols]
+    return E
+
+
+def _read(f: GltfFile, skin, mesh, rigid: bool = True) -> tuple[Rig, Scene, Joints]:
+    """The rig of the skeleton ``skin``/``mesh`` pick (see the module docs), the file's
+    scene, and the joints its clips are decoded for."""
+    _check_extensions(f)
+    scene = Scene(f)
+    chosen = _select(f, scene, skin, mesh)
+    skins = list(dict.fromkeys(s for _, _, s in chosen))
+    nodes, IBM, col = _joint_nodes(scene, skins)
+    bind = _binds(f, IBM)
+    parent = _joint_parents(scene, nodes, col)
+    geo = _Geometry()
+    _read_skinned(f, scene, chosen, col, bind, geo)
+    E = _endpoint_rows(f, geo.Es)
+    carried = (_read_rigid(f, scene, col, bind, E is not None, geo)
+               if rigid and mesh is None else {})
+    if not geo.Vs:
+        raise f.error("a skinned mesh with triangles", "points and lines only")
+    V, F, W = np.vstack(geo.Vs), np.vstack(geo.Fs), np.vstack(geo.Ws)
+    V, IBM, bind = _in_drawn_space(f, scene, nodes, IBM, bind, parent, V)
+    _check_magnitude(f, V, bind)
+    meta = {"gltf": {"file": f.path.name, "skins": [int(s) for s in skins],
+                     "joints": [int(j) for j in nodes], "primitives": geo.prims,
+                     "rigid": geo.parts, "select": {"skin": skin, "mesh": mesh,
+                                                    "rigid": rigid}}}
+    rig = _make_rig(f, scene, skins, nodes, bind, parent, V, F, W, meta)
+    if E is not None:
+        rig = rig.replace(E=_with_rigid_endpoints(E, W, rig) if geo.parts else E)
     return rig, scene, Joints(nodes=nodes, ibm=IBM, skeleton=rig.skeleton, carried=carried)
 
 
