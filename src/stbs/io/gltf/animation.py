@@ -290,18 +290,10 @@ def _warn_carried(f: GltfFile, scene: Scene, J: Joints, chans: dict, label: str)
                       stacklevel=4)
 
 
-def decode_clip(f: GltfFile, scene: Scene, J: Joints, a: int, name: str) -> Clip:
-    """Animation ``a`` of ``f`` as a clip of ``J.skeleton`` (see the module docs)."""
-    sk = J.skeleton
-    b = sk.n_bones
-    nodes = J.nodes
-    bone_of = {node: i for i, node in enumerate(nodes)}
-    relevant = scene.upward(nodes)
-    chans = _channels(f, a, relevant | set(J.carried), scene.n)
-    _warn_carried(f, scene, J, chans, f"animation {a} ({name!r})")
-    chans = {key: ch for key, ch in chans.items() if key[0] in relevant}
-
-    # constant channels are part of the rest; the others move
+def _rest_and_moving(scene: Scene, chans: dict) -> tuple[np.ndarray, np.ndarray, np.ndarray,
+                                                         dict[tuple[int, str], Channel]]:
+    """Each node's rest T, Q, S with the constant channels in (they are part of the
+    rest), and the channels that move."""
     T0, Q0, S0 = scene.T.copy(), scene.Q.copy(), scene.S.copy()
     moving: dict[tuple[int, str], Channel] = {}
     for (node, path), ch in chans.items():
@@ -309,25 +301,33 @@ def decode_clip(f: GltfFile, scene: Scene, J: Joints, a: int, name: str) -> Clip
             {"translation": T0, "rotation": Q0, "scale": S0}[path][node] = ch.rest_value()
         else:
             moving[(node, path)] = ch
+    return T0, Q0, S0, moving
+
+
+def _check_no_shear(f: GltfFile, scene: Scene, moving: dict, a: int) -> None:
+    """Refuse a moving channel on a node given by a matrix that is no T R S."""
     for (node, _path) in moving:
         if scene.matrix[node] and not np.allclose(
                 trs_matrices(scene.T[node], scene.Q[node], scene.S[node]),
                 scene.local[node], atol=1e-6 * max(1.0, np.abs(scene.local[node]).max())):
             raise f.error(f"animation {a}: channels on nodes given by translation, rotation "
                           "and scale", f"node {node} given by a matrix with shear")
-    static = scene.local.copy()
-    touched = {node for node, _ in chans}
-    for node in touched:
-        static[node] = trs_matrices(T0[node], Q0[node], S0[node])
-    # the union of the moving channels' keys, and the first and last key of any
-    # channel on the skeleton (the animation's extent)
+
+
+def _union_times(chans: dict, moving: dict) -> np.ndarray:
+    """The union of the moving channels' keys, and the first and last key of any
+    channel on the skeleton (the animation's extent); [0] for none."""
     times = {float(t) for ch in moving.values() for t in ch.t}
     times.update(float(t) for ch in chans.values() for t in (ch.t[0], ch.t[-1]))
-    U = np.array(sorted(times) or [0.0])
-    k = U.size
+    return np.array(sorted(times) or [0.0])
 
-    # scales that change: named once per animation
-    label = f"animation {a} ({name!r})"
+
+def _warn_scale_changes(f: GltfFile, scene: Scene, J: Joints, moving: dict,
+                        label: str) -> list[tuple[int, float]]:
+    """Warn, once per animation, about the joints and nodes whose scale changes; they
+    (node, by how much) are returned."""
+    sk = J.skeleton
+    bone_of = {node: i for i, node in enumerate(J.nodes)}
     grow = [(node, float(np.abs(ch.v / np.where(ch.v[:1] == 0, 1, ch.v[:1]) - 1).max()))
             for (node, path), ch in moving.items() if path == "scale"]
     loud = [(node, d) for node, d in grow if d > SCALE_TOL]
@@ -335,17 +335,19 @@ def decode_clip(f: GltfFile, scene: Scene, J: Joints, a: int, name: str) -> Clip
         who = ", ".join(f"{'joint' if node in bone_of else 'node'} "
                         f"{(sk.names[bone_of[node]] if node in bone_of else scene.name(node))!r}"
                         f" (by up to {d:.3g})" for node, d in loud[:6])
+        # stacklevel: this, decode_clip, GltfAnimations.__getitem__, its caller
         warnings.warn(f"{str(f.path)!r}: {label} changes the scale of {who}; bones are "
                       "rigid, so that scaling is dropped (the children still move as in "
-                      "the file)", UserWarning, stacklevel=3)
+                      "the file)", UserWarning, stacklevel=4)
+    return loud
 
-    # ---- the exact values at the union times: the node hierarchy, evaluated
-    order = [int(x) for x in scene.order if int(x) in relevant]
-    # the clip keeps about 200 bytes per key and bone; the hierarchy's matrices and the
-    # skin matrices live while it is made
-    f.reserve(k * b * 200, f"{label}: {k} keys over {b} bones")
-    f.reserve(k * (len(order) + 3 * b) * 16 * 8, f"{label}: {k} keys over {len(order)} nodes",
-              keep=False)
+
+def _local_keys(scene: Scene, order: list[int], moving: dict, static: np.ndarray,
+                rest: tuple[np.ndarray, np.ndarray, np.ndarray], U: np.ndarray) -> dict:
+    """Node -> its local matrices at the times ``U`` (k, 4, 4): sampled where a channel
+    moves it, else its static matrix."""
+    T0, Q0, S0 = rest
+    k = U.size
     Nloc = {}
     for node in order:
         if not any((node, p) in moving for p in _PATHS):
@@ -358,17 +360,169 @@ def decode_clip(f: GltfFile, scene: Scene, J: Joints, a: int, name: str) -> Clip
         s = moving[(node, "scale")].sample(U) if (node, "scale") in moving \
             else np.broadcast_to(S0[node], (k, 3))
         Nloc[node] = trs_matrices(np.asarray(t), np.asarray(q), np.asarray(s))
+    return Nloc
+
+
+def _skin_matrices(f: GltfFile, scene: Scene, J: Joints, order: list[int], Nloc: dict,
+                   U: np.ndarray, label: str) -> tuple[np.ndarray, np.ndarray]:
+    """The joints' world matrices ``G_j`` (k, b, 4, 4) at the times ``U``, the node
+    hierarchy evaluated, and their skin matrices ``G_j IBM_j``, checked finite."""
     G = {}
     with np.errstate(over="ignore", invalid="ignore"):
         for node in order:
             p = int(scene.parent[node])
             G[node] = Nloc[node] if p < 0 else G[p] @ Nloc[node]
-        Gj = np.stack([G[j] for j in nodes], axis=1)                 # (k, b, 4, 4)
+        Gj = np.stack([G[j] for j in J.nodes], axis=1)                 # (k, b, 4, 4)
         M = Gj @ J.ibm
     if not np.isfinite(M).all():
         kk = int(np.flatnonzero(~np.isfinite(M).all(axis=(1, 2, 3)))[0])
         raise f.error(f"{label}: skin matrices that are finite at every key",
                       f"an overflow at {U[kk]:g} s (transforms too large)")
+    return Gj, M
+
+
+@dataclass
+class _Bones:
+    """Each bone's channels while they are made: the exact local rotations ``Lg`` and
+    offsets ``Dg`` at the union times ``U`` to start from (interpolated linearly), replaced
+    by a file's channel re-keyed where one reproduces them (its interpolation and cubic
+    tangents kept)."""
+
+    scene: Scene
+    J: Joints
+    order: list[int]
+    U: np.ndarray
+    moving: dict
+    static: np.ndarray
+    Q0: np.ndarray
+    S0: np.ndarray
+    Lg: np.ndarray
+    Dg: np.ndarray
+
+    def __post_init__(self) -> None:
+        k, b = self.Dg.shape[:2]
+        self.quats = tf.matrix_to_quat(self.Lg)
+        self.offs = self.Dg.copy()
+        self.rmode, self.dmode = ["linear"] * b, ["linear"] * b
+        self.rtan = [np.zeros((k, b, 4)), np.zeros((k, b, 4))]
+        self.dtan = [np.zeros((k, b, 3)), np.zeros((k, b, 3))]
+        sk = self.J.skeleton
+        self.size = float(np.linalg.norm(np.ptp(sk.C, axis=0))) or 1.0
+        self.world0 = self.static.copy()
+        for node in self.order:
+            p = int(self.scene.parent[node])
+            if p >= 0:
+                self.world0[node] = self.world0[p] @ self.static[node]
+
+    def rotation(self, i: int, chain: list[int], pb: int) -> None:
+        """Bone ``i``'s rotation from the one animated rotation in its chain of nodes, if
+        there is one (an animated scale on the way that shears or changes the frame
+        fails the check against the exact values)."""
+        rot = [x for x in chain if (x, "rotation") in self.moving]
+        if len(rot) != 1:
+            return
+        x = rot[0]
+        c = chain.index(x)
+        pre = _product(self.static, chain[:c])
+        post = np.diag([*self.S0[x], 1.0]) @ _product(self.static, chain[c + 1:])
+        left = polar(pre[:3, :3])[0]
+        if pb >= 0:
+            left = polar(self.J.ibm[pb, :3, :3])[0].T @ left
+        right = polar(post[:3, :3] @ self.J.ibm[i, :3, :3])[0]
+        qa, qb = tf.matrix_to_quat(left), tf.matrix_to_quat(right)
+        ch = self.moving[(x, "rotation")]
+        val, tin, tout = ch.rekey(self.U)
+        q = _qmul(_qmul(qa, val), qb)
+        if np.abs(tf.quat_to_matrix(q) - self.Lg[:, i]).max() <= CHECK_TOL:
+            self.quats[:, i] = q
+            self.rmode[i] = ch.mode
+            if ch.mode == "cubic":
+                self.rtan[0][:, i] = _qmul(_qmul(qa, tin), qb)
+                self.rtan[1][:, i] = _qmul(_qmul(qa, tout), qb)
+
+    def offset(self, i: int, chain: list[int], pb: int, pnode: int | None) -> None:
+        """Bone ``i``'s offset from the one animated translation in its chain of nodes,
+        if there is one and nothing else moves above it."""
+        below = chain[:-1]
+        moved = [x for x in chain if (x, "translation") in self.moving]
+        still = not any((x, "rotation") in self.moving or (x, "scale") in self.moving
+                        for x in below)
+        if len(moved) != 1 or not still:
+            return
+        A = self.J.skeleton.A
+        x = moved[0]
+        c = chain.index(x)
+        pre = _product(self.static, chain[:c])
+        post = _product(self.static, chain[c + 1:])
+        K = np.eye(3)
+        base = A[i].copy()
+        if pb >= 0:
+            Rp = polar(self.world0[pnode][:3, :3] @ self.J.ibm[pb, :3, :3])[0]
+            K = Rp.T @ self.world0[pnode][:3, :3]
+            base = A[i] - A[pb]
+        Lx = trs_matrices(np.zeros(3), self.Q0[x], self.S0[x])[:3, :3]
+        Amat = K @ pre[:3, :3]
+        cvec = K @ (pre[:3, 3] + pre[:3, :3] @ Lx @ post[:3, 3]) - base
+        ch = self.moving[(x, "translation")]
+        val, tin, tout = ch.rekey(self.U)
+        d = val @ Amat.T + cvec
+        if np.abs(d - self.Dg[:, i]).max() <= CHECK_TOL * self.size:
+            self.offs[:, i] = d
+            self.dmode[i] = ch.mode
+            if ch.mode == "cubic":
+                self.dtan[0][:, i] = tin @ Amat.T
+                self.dtan[1][:, i] = tout @ Amat.T
+
+    def clip(self, f: GltfFile, label: str) -> Clip:
+        """The clip of these channels, at the key spacing's frame rate when it is
+        regular (else 30)."""
+        U = self.U
+        step = np.diff(U)
+        fps = 30.0
+        if step.size and np.ptp(step) <= 1e-6 * step.mean() and step.mean() > 0:
+            fps = 1.0 / float(step.mean())
+        cubic_r = "cubic" in self.rmode
+        cubic_d = "cubic" in self.dmode
+        try:
+            return Clip.from_local(self.J.skeleton, U, rotations=self.quats,
+                                   offsets=self.offs, fps=fps,
+                                   rotation_interpolation=self.rmode,
+                                   offset_interpolation=self.dmode,
+                                   rotation_tangents=tuple(self.rtan) if cubic_r else None,
+                                   offset_tangents=tuple(self.dtan) if cubic_d else None)
+        except ValueError as exc:
+            raise f.error(f"{label}: keys that make a clip",
+                          " ".join(str(exc).split())) from None
+
+
+def decode_clip(f: GltfFile, scene: Scene, J: Joints, a: int, name: str) -> Clip:
+    """Animation ``a`` of ``f`` as a clip of ``J.skeleton`` (see the module docs)."""
+    sk = J.skeleton
+    b = sk.n_bones
+    nodes = J.nodes
+    label = f"animation {a} ({name!r})"
+    relevant = scene.upward(nodes)
+    chans = _channels(f, a, relevant | set(J.carried), scene.n)
+    _warn_carried(f, scene, J, chans, label)
+    chans = {key: ch for key, ch in chans.items() if key[0] in relevant}
+    T0, Q0, S0, moving = _rest_and_moving(scene, chans)
+    _check_no_shear(f, scene, moving, a)
+    static = scene.local.copy()
+    for node in {node for node, _ in chans}:
+        static[node] = trs_matrices(T0[node], Q0[node], S0[node])
+    U = _union_times(chans, moving)
+    k = U.size
+    loud = _warn_scale_changes(f, scene, J, moving, label)
+
+    # ---- the exact values at the union times: the node hierarchy, evaluated
+    order = [int(x) for x in scene.order if int(x) in relevant]
+    # the clip keeps about 200 bytes per key and bone; the hierarchy's matrices and the
+    # skin matrices live while it is made
+    f.reserve(k * b * 200, f"{label}: {k} keys over {b} bones")
+    f.reserve(k * (len(order) + 3 * b) * 16 * 8, f"{label}: {k} keys over {len(order)} nodes",
+              keep=False)
+    Nloc = _local_keys(scene, order, moving, static, (T0, Q0, S0), U)
+    Gj, M = _skin_matrices(f, scene, J, order, Nloc, U, label)
     R, dev = polar(M[..., :3, :3])
     O = Gj[..., :3, 3]
     ones, zeros = np.ones((k, b)), np.zeros((k, b, 2))
@@ -381,81 +535,11 @@ def decode_clip(f: GltfFile, scene: Scene, J: Joints, a: int, name: str) -> Clip
                       "rigid, so that is dropped", UserWarning, stacklevel=3)
 
     # ---- each bone's channels: analytic where the structure allows, checked
-    quats = tf.matrix_to_quat(Lg)
-    offs = Dg.copy()
-    rmode, dmode = ["linear"] * b, ["linear"] * b
-    rtan = [np.zeros((k, b, 4)), np.zeros((k, b, 4))]
-    dtan = [np.zeros((k, b, 3)), np.zeros((k, b, 3))]
-    size = float(np.linalg.norm(np.ptp(sk.C, axis=0))) or 1.0
-    A = sk.A
-    world0 = static.copy()
-    for node in order:
-        p = int(scene.parent[node])
-        if p >= 0:
-            world0[node] = world0[p] @ static[node]
+    bones = _Bones(scene, J, order, U, moving, static, Q0, S0, Lg, Dg)
     for i, node in enumerate(nodes):
         pb = int(sk.parents[i])
         pnode = nodes[pb] if pb >= 0 else None
         chain = _chain(scene, node, pnode)
-        # rotation: one animated rotation in the chain (an animated scale on the way
-        # that shears or changes the frame fails the check against the exact values)
-        rot = [x for x in chain if (x, "rotation") in moving]
-        if len(rot) == 1:
-            x = rot[0]
-            c = chain.index(x)
-            pre = _product(static, chain[:c])
-            post = np.diag([*S0[x], 1.0]) @ _product(static, chain[c + 1:])
-            left = polar(pre[:3, :3])[0]
-            if pb >= 0:
-                left = polar(J.ibm[pb, :3, :3])[0].T @ left
-            right = polar(post[:3, :3] @ J.ibm[i, :3, :3])[0]
-            qa, qb = tf.matrix_to_quat(left), tf.matrix_to_quat(right)
-            ch = moving[(x, "rotation")]
-            val, tin, tout = ch.rekey(U)
-            q = _qmul(_qmul(qa, val), qb)
-            if np.abs(tf.quat_to_matrix(q) - Lg[:, i]).max() <= CHECK_TOL:
-                quats[:, i] = q
-                rmode[i] = ch.mode
-                if ch.mode == "cubic":
-                    rtan[0][:, i] = _qmul(_qmul(qa, tin), qb)
-                    rtan[1][:, i] = _qmul(_qmul(qa, tout), qb)
-        # offset: one animated translation in the chain, nothing else moving above it
-        below = chain[:-1]
-        moved = [x for x in chain if (x, "translation") in moving]
-        still = not any((x, "rotation") in moving or (x, "scale") in moving for x in below)
-        if len(moved) == 1 and still:
-            x = moved[0]
-            c = chain.index(x)
-            pre = _product(static, chain[:c])
-            post = _product(static, chain[c + 1:])
-            K = np.eye(3)
-            base = A[i].copy()
-            if pb >= 0:
-                Rp = polar(world0[pnode][:3, :3] @ J.ibm[pb, :3, :3])[0]
-                K = Rp.T @ world0[pnode][:3, :3]
-                base = A[i] - A[pb]
-            Lx = trs_matrices(np.zeros(3), Q0[x], S0[x])[:3, :3]
-            Amat = K @ pre[:3, :3]
-            cvec = K @ (pre[:3, 3] + pre[:3, :3] @ Lx @ post[:3, 3]) - base
-            ch = moving[(x, "translation")]
-            val, tin, tout = ch.rekey(U)
-            d = val @ Amat.T + cvec
-            if np.abs(d - Dg[:, i]).max() <= CHECK_TOL * size:
-                offs[:, i] = d
-                dmode[i] = ch.mode
-                if ch.mode == "cubic":
-                    dtan[0][:, i] = tin @ Amat.T
-                    dtan[1][:, i] = tout @ Amat.T
-    step = np.diff(U)
-    fps = 30.0
-    if step.size and np.ptp(step) <= 1e-6 * step.mean() and step.mean() > 0:
-        fps = 1.0 / float(step.mean())
-    cubic_r = "cubic" in rmode
-    cubic_d = "cubic" in dmode
-    try:
-        return Clip.from_local(sk, U, rotations=quats, offsets=offs, fps=fps,
-                               rotation_interpolation=rmode, offset_interpolation=dmode,
-                               rotation_tangents=tuple(rtan) if cubic_r else None,
-                               offset_tangents=tuple(dtan) if cubic_d else None)
-    except ValueError as exc:
-        raise f.error(f"{label}: keys that make a clip", " ".join(str(exc).split())) from None
+        bones.rotation(i, chain, pb)
+        bones.offset(i, chain, pb, pnode)
+    return bones.clip(f, label)
