@@ -192,36 +192,44 @@ class _Joint:
         self.offset = self.channels = False
 
 
-def _parse_hierarchy(p, tok: _Tokens):
-    """The joints of the HIERARCHY part, read with a stack of open blocks (never by
-    recursion, so that a hierarchy of any depth reads)."""
-    names: list[str] = []
-    parents: list[int] = []
-    offsets: list[list[float]] = []
-    channels: list[list[tuple[str, int]]] = []    # (kind, axis) per channel
-    end_site: list[bool] = []
-    taken: set[str] = set()
-    stack: list[_Joint] = []
+class _Hierarchy:
+    """The joints of the HIERARCHY part as they are read: names, parents, offsets,
+    channels ((kind, axis) per channel) and end-site flags, one entry per joint, and
+    the stack of open blocks."""
 
-    def open_block(name: str, parent: int, is_end: bool, line: int) -> None:
+    def __init__(self, p, tok: _Tokens):
+        self.p, self.tok = p, tok
+        self.names: list[str] = []
+        self.parents: list[int] = []
+        self.offsets: list[list[float]] = []
+        self.channels: list[list[tuple[str, int]]] = []
+        self.end_site: list[bool] = []
+        self.taken: set[str] = set()
+        self.stack: list[_Joint] = []
+
+    def open_block(self, name: str, parent: int, is_end: bool, line: int) -> None:
+        """A joint (or end site) named ``name`` below ``parent``, its ``{`` read."""
+        p, names = self.p, self.names
         if len(names) >= MAX_JOINTS:
             raise FormatError(p, f"at most {MAX_JOINTS} joints (end sites included)",
                               f"joint {len(names) + 1}, {quote(name)}", line=line)
         if len(name) > MAX_NAME:
             raise FormatError(p, f"a joint name of at most {MAX_NAME} characters",
                               f"one of {len(name)}: {quote(name)}", line=line)
-        if name in taken:
+        if name in self.taken:
             raise FormatError(p, "a joint name not used before", quote(name), line=line)
-        taken.add(name)
-        stack.append(_Joint(len(names), is_end, line))
+        self.taken.add(name)
+        self.stack.append(_Joint(len(names), is_end, line))
         names.append(name)
-        parents.append(parent)
-        end_site.append(is_end)
-        channels.append([])
-        offsets.append([0.0, 0.0, 0.0])
-        tok.word("{")
+        self.parents.append(parent)
+        self.end_site.append(is_end)
+        self.channels.append([])
+        self.offsets.append([0.0, 0.0, 0.0])
+        self.tok.word("{")
 
-    def read_channels(k: int, name: str) -> None:
+    def read_channels(self, k: int, name: str) -> None:
+        """The count and names of joint ``k``'s channels (after ``CHANNELS``)."""
+        p, tok = self.p, self.tok
         cw, cno = tok.take(f"the channel count of {name!r}")
         if not re.fullmatch(r"[0-9]{1,2}", cw) or int(cw) > 6:
             raise FormatError(p, f"0 to 6 channels for {name!r}", quote(cw), line=cno)
@@ -233,60 +241,81 @@ def _parse_hierarchy(p, tok: _Tokens):
                 raise FormatError(p, f"a channel name (Xposition ... Zrotation) for "
                                      f"{name!r}, {count} in all", quote(c), line=cl)
             ch = (m.group(2).lower(), _AXES[m.group(1).lower()])
-            if ch in channels[k]:
+            if ch in self.channels[k]:
                 raise FormatError(p, f"each channel of {name!r} once", quote(c), line=cl)
-            channels[k].append(ch)
+            self.channels[k].append(ch)
 
+    def root(self) -> bool:
+        """Open the next ROOT block; False at the end of the hierarchy."""
+        if self.tok.peek() is None:
+            return False
+        w, no = self.tok.take("'ROOT'")
+        if w.upper() != "ROOT":
+            raise FormatError(self.p, "'ROOT' (or 'MOTION' after the hierarchy)", quote(w),
+                              line=no)
+        name, nno = self.tok.take("a root name")
+        self.open_block(name, -1, False, nno)
+        return True
+
+    def close(self, top: _Joint) -> None:
+        """The ``}`` of the innermost block, which must have had its OFFSET."""
+        k = top.k
+        if not top.offset:
+            owner = (f"the End Site of {self.names[self.parents[k]]!r}" if top.is_end
+                     else repr(self.names[k]))
+            raise FormatError(self.p, f"an OFFSET line in {owner}", "none", line=top.line)
+        self.stack.pop()
+
+    def statement(self, top: _Joint) -> None:
+        """One statement inside the innermost open block ``top``."""
+        p, tok = self.p, self.tok
+        k, is_end = top.k, top.is_end
+        name = self.names[k]
+        w, no = tok.take("'OFFSET', 'CHANNELS', 'JOINT', 'End Site' or '}'")
+        key = w.upper()
+        if key == "}":
+            self.close(top)
+        elif key == "OFFSET":
+            if top.offset:
+                raise FormatError(p, f"one OFFSET line in {name!r}", "a second one", line=no)
+            self.offsets[k] = [tok.number(f"an OFFSET value of {name!r}") for _ in range(3)]
+            top.offset = True
+        elif key == "CHANNELS" and not is_end:
+            if top.channels:
+                raise FormatError(p, f"one CHANNELS line in {name!r}", "a second one", line=no)
+            self.read_channels(k, name)
+            top.channels = True
+        elif key == "JOINT" and not is_end:
+            child, cno = tok.take("a joint name")
+            self.open_block(child, k, False, cno)
+        elif key == "END" and not is_end:
+            tok.word("Site")
+            self.open_block(f"{name}_end", k, True, no)
+        else:
+            where = "an End Site" if is_end else f"joint {name!r}"
+            raise FormatError(p, f"'OFFSET'{'' if is_end else ', CHANNELS, JOINT, End Site'}"
+                                 f" or '}}' in {where}", quote(w), line=no)
+
+
+def _parse_hierarchy(p, tok: _Tokens):
+    """The joints of the HIERARCHY part, read with a stack of open blocks (never by
+    recursion, so that a hierarchy of any depth reads)."""
+    h = _Hierarchy(p, tok)
     t = tok.peek()
     if t is None or t[0].upper() != "HIERARCHY":
         raise FormatError(p, "'HIERARCHY' first", quote(t[0]) if t else "an empty file",
                           line=t[1] if t else 1)
     tok.take("HIERARCHY")
     while True:
-        if not stack:
-            if tok.peek() is None:
+        if not h.stack:
+            if not h.root():
                 break
-            w, no = tok.take("'ROOT'")
-            if w.upper() != "ROOT":
-                raise FormatError(p, "'ROOT' (or 'MOTION' after the hierarchy)", quote(w),
-                                  line=no)
-            name, nno = tok.take("a root name")
-            open_block(name, -1, False, nno)
             continue
-        top = stack[-1]
-        k, is_end = top.k, top.is_end
-        name = names[k]
-        w, no = tok.take("'OFFSET', 'CHANNELS', 'JOINT', 'End Site' or '}'")
-        key = w.upper()
-        if key == "}":
-            if not top.offset:
-                owner = f"the End Site of {names[parents[k]]!r}" if is_end else repr(name)
-                raise FormatError(p, f"an OFFSET line in {owner}", "none", line=top.line)
-            stack.pop()
-        elif key == "OFFSET":
-            if top.offset:
-                raise FormatError(p, f"one OFFSET line in {name!r}", "a second one", line=no)
-            offsets[k] = [tok.number(f"an OFFSET value of {name!r}") for _ in range(3)]
-            top.offset = True
-        elif key == "CHANNELS" and not is_end:
-            if top.channels:
-                raise FormatError(p, f"one CHANNELS line in {name!r}", "a second one", line=no)
-            read_channels(k, name)
-            top.channels = True
-        elif key == "JOINT" and not is_end:
-            child, cno = tok.take("a joint name")
-            open_block(child, k, False, cno)
-        elif key == "END" and not is_end:
-            tok.word("Site")
-            open_block(f"{name}_end", k, True, no)
-        else:
-            where = "an End Site" if is_end else f"joint {name!r}"
-            raise FormatError(p, f"'OFFSET'{'' if is_end else ', CHANNELS, JOINT, End Site'}"
-                                 f" or '}}' in {where}", quote(w), line=no)
-    if not names:
+        h.statement(h.stack[-1])
+    if not h.names:
         raise FormatError(p, "a ROOT joint after 'HIERARCHY'", "none",
                           line=tok.motion_line or tok.n_lines)
-    return names, parents, offsets, channels, end_site
+    return h.names, h.parents, h.offsets, h.channels, h.end_site
 
 
 def _header(p, text: str, pos: int, line: int, key: str) -> tuple[str, int]:
