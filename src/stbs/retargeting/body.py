@@ -265,42 +265,55 @@ def _empty(tree: Tree, how: str) -> Body:
 
 
 # ------------------------------------------------------------------ by names
-def _by_names(tree: Tree, names) -> Body:
-    n = tree.n
-    body = _empty(tree, "names")
-    parsed = [None if (nm is None or tree.tips[k]) else parse_name(nm)
-              for k, nm in enumerate(names)]
-    cand = [{} if p is None else candidates(p) for p in parsed]
-    tol = 1e-6 * tree.size
-    zero = np.array([tree.segment_end(k) < 0
-                     or np.linalg.norm(tree.X[tree.main[k]] - tree.X[k]) <= tol
-                     if tree.main[k] >= 0 else True for k in range(n)])
+class _Names:
+    """What the joints' names say: each joint's parsed name and candidate roles (with
+    their scores), and the chains of a group they best fill."""
 
-    def score(k, role, extra=None):
-        c = cand[k].get(role)
+    def __init__(self, tree: Tree, names):
+        self.tree = tree
+        n = tree.n
+        self.parsed = [None if (nm is None or tree.tips[k]) else parse_name(nm)
+                       for k, nm in enumerate(names)]
+        self.cand = [{} if p is None else candidates(p) for p in self.parsed]
+        tol = 1e-6 * tree.size
+        self.zero = np.array([tree.segment_end(k) < 0
+                              or np.linalg.norm(tree.X[tree.main[k]] - tree.X[k]) <= tol
+                              if tree.main[k] >= 0 else True for k in range(n)])
+
+    def score(self, k, role, extra=None):
+        """How well joint ``k``'s name means ``role`` (with ``extra`` points), or None."""
+        c = self.cand[k].get(role)
         if extra is not None and role in extra.get(k, {}):
             c = (c or 0) + extra[k][role]
         if c is None:
             return None
         # of two joints at one place named alike, the one whose bone has a length
-        return c - (0.5 if zero[k] else 0.0)
+        return c - (0.5 if self.zero[k] else 0.0)
 
-    groups: dict[tuple[str, str], list[int]] = {}
-    for k in range(n):
-        roles = set(cand[k])
-        if not roles:
-            continue
-        side = parsed[k].side
-        if roles <= set(LEG):
-            groups.setdefault((side, "leg"), []).append(k)
-        elif roles <= set(ARM):
-            groups.setdefault((side, "arm"), []).append(k)
-        elif roles <= set(TORSO) and side == "":
-            groups.setdefault(("", "torso"), []).append(k)
+    def groups(self) -> dict[tuple[str, str], list[int]]:
+        """(side, "leg" | "arm" | "torso") -> the joints whose names mean only such
+        roles, in joint order."""
+        groups: dict[tuple[str, str], list[int]] = {}
+        for k in range(self.tree.n):
+            roles = set(self.cand[k])
+            if not roles:
+                continue
+            side = self.parsed[k].side
+            if roles <= set(LEG):
+                groups.setdefault((side, "leg"), []).append(k)
+            elif roles <= set(ARM):
+                groups.setdefault((side, "arm"), []).append(k)
+            elif roles <= set(TORSO) and side == "":
+                groups.setdefault(("", "torso"), []).append(k)
+        return groups
 
-    def assign(group, template, extra=None):
-        chain = _longest_chain(tree, group, lambda k: max(cand[k].values(), default=0))
-        got = _align_chain(chain, template, lambda k, r: score(k, r, extra))
+    def assign(self, group, template, extra=None):
+        """The longest chain through ``group``, its joints' roles from ``template``
+        (and the roles only a name off the chain can mean), the chain's joints that
+        got one."""
+        cand = self.cand
+        chain = _longest_chain(self.tree, group, lambda k: max(cand[k].values(), default=0))
+        got = _align_chain(chain, template, lambda k, r: self.score(k, r, extra))
         on_chain = [k for k in chain if k in got]
         for k in group:                    # off the chain: a role only its name can mean
             if k in got or len(cand[k]) != 1:
@@ -310,18 +323,9 @@ def _by_names(tree: Tree, names) -> Body:
                 got[k] = role
         return chain, got, on_chain
 
-    legs = {}
-    for (side, kind), group in groups.items():
-        if kind == "leg":
-            _, got, on_chain = assign(group, LEG)
-            legs[side] = on_chain
-            for k, r in got.items():
-                body.role[k], body.side[k] = r, side
-        elif kind == "arm":
-            _, got, _ = assign(group, ARM)
-            for k, r in got.items():
-                body.role[k], body.side[k] = r, side
-    # the pelvis: the joint the legs hang from
+
+def _pelvis_of_legs(tree: Tree, body: Body, legs: dict[str, list[int]]) -> int:
+    """The joint the legs hang from (-1: none, or one that already has a role)."""
     tops = []
     for chain in legs.values():
         if chain:
@@ -335,6 +339,25 @@ def _by_names(tree: Tree, names) -> Body:
         pelvis = common[0] if common else tops[0]
         if body.role[pelvis] is not None:
             pelvis = -1
+    return pelvis
+
+
+def _by_names(tree: Tree, names) -> Body:
+    body = _empty(tree, "names")
+    nm = _Names(tree, names)
+    groups = nm.groups()
+    legs = {}
+    for (side, kind), group in groups.items():
+        if kind == "leg":
+            _, got, on_chain = nm.assign(group, LEG)
+            legs[side] = on_chain
+            for k, r in got.items():
+                body.role[k], body.side[k] = r, side
+        elif kind == "arm":
+            _, got, _ = nm.assign(group, ARM)
+            for k, r in got.items():
+                body.role[k], body.side[k] = r, side
+    pelvis = _pelvis_of_legs(tree, body, legs)
     torso = list(groups.get(("", "torso"), []))
     extra: dict[int, dict[str, int]] = {}
     if pelvis >= 0:
@@ -345,7 +368,7 @@ def _by_names(tree: Tree, names) -> Body:
         torso = [k for k in torso if k == pelvis or tree.is_below(k, pelvis)
                  or tree.is_below(pelvis, k)]
     if torso:
-        chain, got, _ = assign(torso, TORSO, extra)
+        chain, got, _ = nm.assign(torso, TORSO, extra)
         for k, r in got.items():
             body.role[k] = r
         for k, s in _spans(tree, chain, got).items():
@@ -398,24 +421,22 @@ def _unit(v):
     return v / n if n > 1e-12 else None
 
 
-def _by_structure(tree: Tree) -> Body | None:
-    pairs = _pairs(tree)
-    if len(pairs) < 2:
-        return None
+def _pelvis_and_chest(tree: Tree, pairs: dict) -> tuple[int, int] | None:
+    """The two heaviest joints with a mirrored pair of branches: the lower one the
+    pelvis, the one above it the chest (None: neither is above the other)."""
     weight = {k: tree.branch(k, a) + tree.branch(k, b) for k, (a, b, _) in pairs.items()}
     top = sorted(pairs, key=lambda k: -weight[k])[:2]
     k0, k1 = top
     if tree.is_below(k1, k0):
-        pelvis, chest = k0, k1
-    elif tree.is_below(k0, k1):
-        pelvis, chest = k1, k0
-    else:
-        return None
-    up = _unit(tree.X[chest] - tree.X[pelvis])
-    if up is None:
-        return None
-    body = _empty(tree, "structure")
-    tol = 1e-6 * tree.size
+        return k0, k1
+    if tree.is_below(k0, k1):
+        return k1, k0
+    return None
+
+
+def _structure_torso(tree: Tree, body: Body, pelvis: int, chest: int, arms) -> None:
+    """The roles of the torso: root above the pelvis, spine up to the chest, and neck
+    and head on the chest's heaviest branch that is not an arm; with their spans."""
     body.role[pelvis] = "pelvis"
     for a in tree.ancestors(pelvis):
         if not tree.tips[a]:
@@ -426,7 +447,6 @@ def _by_structure(tree: Tree) -> Body | None:
     torso_chain = [pelvis] + spine[::-1]
     for k in spine:
         body.role[k] = "spine"
-    arms = pairs[chest][:2]
     rest = [c for c in tree.kids[chest] if c not in arms]
     if rest:
         c = max(rest, key=lambda c: tree.branch(chest, c))
@@ -440,24 +460,29 @@ def _by_structure(tree: Tree) -> Body | None:
     for k, s in _spans(tree, torso_chain, got).items():
         body.span[k] = s
 
-    def segments(start):
-        """(joint, bone vector) along a limb's main path; short bones are passed over
-        (a zero-length joint, a knuckle), but not the last joint, whose bone (a leaf's
-        tail) may be short."""
-        path = [k for k in tree.path(start) if not tree.tips[k]]
-        out = []
-        for k in path:
-            e = tree.segment_end(k)
-            if e < 0:
-                continue
-            seg = tree.X[e] - tree.X[k]
-            if np.linalg.norm(seg) >= 0.03 * tree.size or (k == path[-1] and out):
-                out.append((k, seg))
-        return out
 
+def _segments(tree: Tree, start: int) -> list[tuple[int, np.ndarray]]:
+    """(joint, bone vector) along a limb's main path; short bones are passed over
+    (a zero-length joint, a knuckle), but not the last joint, whose bone (a leaf's
+    tail) may be short."""
+    path = [k for k in tree.path(start) if not tree.tips[k]]
+    out = []
+    for k in path:
+        e = tree.segment_end(k)
+        if e < 0:
+            continue
+        seg = tree.X[e] - tree.X[k]
+        if np.linalg.norm(seg) >= 0.03 * tree.size or (k == path[-1] and out):
+            out.append((k, seg))
+    return out
+
+
+def _leg_roles(tree: Tree, starts, up: np.ndarray) -> dict[int, dict[int, str]]:
+    """Leg start -> the roles of its joints: the thigh from the first long bone that
+    points down (a hip above it), then shin, foot and toe."""
     legs = {}
-    for a in pairs[pelvis][:2]:
-        segs = segments(a)
+    for a in starts:
+        segs = _segments(tree, a)
         if not segs:
             continue
         long = [i for i, (_, s) in enumerate(segs) if np.linalg.norm(s) >= 0.1 * tree.size]
@@ -469,7 +494,13 @@ def _by_structure(tree: Tree) -> Body | None:
         for r, (k, _) in zip(("thigh", "shin", "foot", "toe"), segs[t:], strict=False):
             roles[k] = r
         legs[a] = roles
-    # forward: where the feet point (the foot's bone, across the up axis)
+    return legs
+
+
+def _forward(tree: Tree, legs: dict[int, dict[int, str]], up: np.ndarray) -> np.ndarray:
+    """The body's forward: where the feet point (the foot's bone, across the up axis),
+    else the usual facing of rigs."""
+    tol = 1e-6 * tree.size
     fwd = np.zeros(3)
     for roles in legs.values():
         foot = next((k for k, r in roles.items() if r == "foot"), -1)
@@ -487,20 +518,23 @@ def _by_structure(tree: Tree) -> Body | None:
         fwd = _unit(fwd - (fwd @ up) * up)
         if fwd is None:
             fwd = _unit(np.cross(up, [1.0, 0, 0])) or np.array([0, 0, 1.0])
-    left = np.cross(up, fwd)
+    return fwd
 
-    def sides(a, b):
-        pa = [k for k in tree.path(a) if not tree.tips[k]]
-        pb = [k for k in tree.path(b) if not tree.tips[k]]
-        d = tree.X[pa].mean(axis=0) - tree.X[pb].mean(axis=0)
-        return ("l", "r") if d @ left >= 0 else ("r", "l")
 
-    a, b = pairs[pelvis][:2]
-    for node, side in zip((a, b), sides(a, b), strict=True):
-        for k, r in legs.get(node, {}).items():
-            body.role[k], body.side[k] = r, side
-    for node, side in zip(arms, sides(*arms), strict=True):
-        segs = segments(node)
+def _sides(tree: Tree, a: int, b: int, left: np.ndarray) -> tuple[str, str]:
+    """The sides ("l", "r") of the limbs starting at ``a`` and ``b``."""
+    pa = [k for k in tree.path(a) if not tree.tips[k]]
+    pb = [k for k in tree.path(b) if not tree.tips[k]]
+    d = tree.X[pa].mean(axis=0) - tree.X[pb].mean(axis=0)
+    return ("l", "r") if d @ left >= 0 else ("r", "l")
+
+
+def _arm_roles(tree: Tree, body: Body, chest: int, arms, up: np.ndarray,
+               left: np.ndarray) -> None:
+    """The roles and sides of the arms' joints (a collar where the arm's first bone
+    starts close to the chest's axis)."""
+    for node, side in zip(arms, _sides(tree, *arms, left), strict=True):
+        segs = _segments(tree, node)
         if not segs:
             continue
         tip = tree.X[tree.path(node)[-1]] - tree.X[chest]
@@ -510,6 +544,29 @@ def _by_structure(tree: Tree) -> Body | None:
         names = ARM if len(segs) >= 4 and lateral < 0.12 * reach else ARM[1:]
         for r, (k, _) in zip(names, segs, strict=False):
             body.role[k], body.side[k] = r, side
+
+
+def _by_structure(tree: Tree) -> Body | None:
+    pairs = _pairs(tree)
+    if len(pairs) < 2:
+        return None
+    found = _pelvis_and_chest(tree, pairs)
+    if found is None:
+        return None
+    pelvis, chest = found
+    up = _unit(tree.X[chest] - tree.X[pelvis])
+    if up is None:
+        return None
+    body = _empty(tree, "structure")
+    arms = pairs[chest][:2]
+    _structure_torso(tree, body, pelvis, chest, arms)
+    legs = _leg_roles(tree, pairs[pelvis][:2], up)
+    left = np.cross(up, _forward(tree, legs, up))
+    a, b = pairs[pelvis][:2]
+    for node, side in zip((a, b), _sides(tree, a, b, left), strict=True):
+        for k, r in legs.get(node, {}).items():
+            body.role[k], body.side[k] = r, side
+    _arm_roles(tree, body, chest, arms, up, left)
     return body
 
 
