@@ -72,6 +72,61 @@ def _source(motion: Motion) -> _Side:
 
 
 # ------------------------------------------------------------------ the mapping
+def _map_repeated_roles(out: np.ndarray, tb: Body, sb: Body, s_chest: int, b: int) -> None:
+    """Map the rig's unmapped spine and neck bones: one to one in order when the counts
+    agree, else each to the capture joint whose place along the spine overlaps its own
+    most (the capture's chest left out)."""
+    for role in ("spine", "neck"):
+        ts = [i for i in tb.find(role) if i < b and out[i] < 0]
+        ss = [k for k in sb.find(role) if k != s_chest]
+        if not ts or not ss:
+            continue
+        if len(ts) == len(ss):
+            out[ts] = ss
+            continue
+        for i in ts:
+            a, e = tb.span[i]
+
+            def overlap(k, a=a, e=e):
+                s0, s1 = sb.span[k]
+                return (min(e, s1) - max(a, s0), -abs((a + e) - (s0 + s1)))
+            out[i] = max(ss, key=overlap)
+
+
+def _map_by_roles(out: np.ndarray, used: set, tb: Body, sb: Body, b: int) -> None:
+    """Map each unmapped bone with a limb or head role to a capture joint of that role
+    and side (the first not used yet)."""
+    for i in range(b):
+        role, side = tb.role[i], tb.side[i]
+        if out[i] >= 0 or role in (None, "root", "spine", "neck"):
+            continue
+        cands = sb.find(role, side)
+        if not cands:
+            continue
+        k = next((c for c in cands if c not in used), cands[0])
+        out[i] = k
+        used.add(k)
+
+
+def _map_by_name_keys(out: np.ndarray, used: set, tgt: _Side, src: _Side, motion: Motion,
+                      joints: list[int], base: list[str]) -> None:
+    """Map the bones without a part (fingers, eyes, props) to the capture joint of the
+    same name across conventions, shallow bones first, one bone each."""
+    b = tgt.n
+    tb, sb = tgt.body, src.body
+    keys: dict[str, int] = {}
+    for k in joints:
+        if sb.role[k] is None:
+            keys.setdefault(parse_name(motion.names[k]).key, k)
+    for i in np.argsort(tgt.tree.depth[:b], kind="stable"):
+        if out[i] < 0 and tb.role[i] is None:
+            p = parse_name(base[i])
+            k = keys.get(p.key, -1) if p.words else -1
+            if k >= 0 and k not in used:        # one bone each: Thumb2 follows Thumb
+                out[i] = k
+                used.add(k)
+
+
 def _auto_mapping(tgt: _Side, src: _Side, motion: Motion) -> np.ndarray:
     """Rig bone -> capture joint: by name when the rig is named as the capture (two
     thirds of its bones), else by body part, then by name across conventions."""
@@ -89,45 +144,9 @@ def _auto_mapping(tgt: _Side, src: _Side, motion: Motion) -> np.ndarray:
     if 0 <= t_chest < b and s_chest >= 0 and out[t_chest] < 0:
         out[t_chest] = s_chest
         used.add(s_chest)
-    for role in ("spine", "neck"):
-        # repeated roles: one to one in order when the counts agree, else by where the
-        # joints lie along the spine (neck)
-        ts = [i for i in tb.find(role) if i < b and out[i] < 0]
-        ss = [k for k in sb.find(role) if k != s_chest]
-        if not ts or not ss:
-            continue
-        if len(ts) == len(ss):
-            out[ts] = ss
-            continue
-        for i in ts:
-            a, e = tb.span[i]
-
-            def overlap(k, a=a, e=e):
-                s0, s1 = sb.span[k]
-                return (min(e, s1) - max(a, s0), -abs((a + e) - (s0 + s1)))
-            out[i] = max(ss, key=overlap)
-    for i in range(b):
-        role, side = tb.role[i], tb.side[i]
-        if out[i] >= 0 or role in (None, "root", "spine", "neck"):
-            continue
-        cands = sb.find(role, side)
-        if not cands:
-            continue
-        k = next((c for c in cands if c not in used), cands[0])
-        out[i] = k
-        used.add(k)
-    # bones without a part (fingers, eyes, props): the same name across conventions
-    keys: dict[str, int] = {}
-    for k in joints:
-        if sb.role[k] is None:
-            keys.setdefault(parse_name(motion.names[k]).key, k)
-    for i in np.argsort(tgt.tree.depth[:b], kind="stable"):
-        if out[i] < 0 and tb.role[i] is None:
-            p = parse_name(base[i])
-            k = keys.get(p.key, -1) if p.words else -1
-            if k >= 0 and k not in used:        # one bone each: Thumb2 follows Thumb
-                out[i] = k
-                used.add(k)
+    _map_repeated_roles(out, tb, sb, s_chest, b)
+    _map_by_roles(out, used, tb, sb, b)
+    _map_by_name_keys(out, used, tgt, src, motion, joints, base)
     return out
 
 
