@@ -18,7 +18,7 @@ import { Gizmo } from "./gizmo.js";
 import { PoseFiles } from "./posefiles.js";
 import { Timeline } from "./timeline.js";
 import { MESH_FRAGMENT, MESH_VERTEX, METHODS, TEXELS_PER_BONE } from "./skin.js";
-import { api, apiJSON, loadArray } from "./api.js";
+import { api, apiJSON, loadArray, poseBones, seekClip, setWorldPose } from "./api.js";
 import { Events } from "./events.js";
 import { History } from "./history.js";
 import { Store } from "./store.js";
@@ -76,7 +76,8 @@ class Viewer {
     this.store = new Store(this.events);
     this.history = new History(this.events);
     this.keys = new Keys(window);
-    this.poses = new PoseLink(this.store, apiJSON, (err) => status(`stbs view: ${err.message}`, true));
+    this.poses = new PoseLink(this.store, { apiJSON, poseBones, setWorldPose },
+                              (err) => status(`stbs view: ${err.message}`, true));
     this.view = makeView(this);
     this.ctx = Object.freeze({ store: this.store, events: this.events, history: this.history,
                                keys: this.keys, view: this.view, poses: this.poses });
@@ -128,9 +129,9 @@ class Viewer {
     this.compare = new Compare(ctx);
     this.gizmo = new Gizmo(ctx, bones);
     this.editor = new PoseEditor(ctx, { bones, gizmo: this.gizmo, painting: () => this.painting() });
-    this.weights = new WeightEditor(this, api);
+    this.weights = new WeightEditor(ctx, api);
     this.poseFiles = new PoseFiles(ctx, apiJSON, status);
-    this.timeline = new Timeline(ctx, api, status);
+    this.timeline = new Timeline(ctx, api, status, seekClip);
     this.registerKeys();
     this.store.select(0);
     if (info.clip) {        // started with a clip (stbs view RIG --motion FILE): on the timeline

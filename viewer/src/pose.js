@@ -118,41 +118,45 @@ export function hangSegments(links, segs, out) {
 }
 
 /**
- * The pose on the server: sends pose objects (POST /api/pose) and puts what the server
- * makes of them into the store (store.setPose, per-bone arrays and the pose object).
- * Interactive edits send with send(): the latest pose wins, one request at a time.
- * `apiJSON(path, options)` is the page's API client.
+ * The pose on the server: sends pose objects (POST /api/pose) or the page's world
+ * transforms (POST /api/pose/bones) and puts what the server makes of them into the
+ * store (store.setPose: per-bone arrays and the pose object). Interactive edits send
+ * with send(): the latest pose wins, one request at a time. `client`: the page's API
+ * client (api.js: apiJSON, poseBones, setWorldPose).
  */
 export class PoseLink {
-  constructor(store, apiJSON, report = () => {}) {
+  constructor(store, client, report = () => {}) {
+    for (const f of ["apiJSON", "poseBones", "setWorldPose"]) {
+      if (typeof client?.[f] !== "function") throw new Error(`PoseLink: the client needs ${f}(), got ${typeof client?.[f]}`);
+    }
     this.store = store;
-    this.apiJSON = apiJSON;
+    this.client = client;
     this.report = report;
     this.pending = null;
     this.sending = null;
-    this.preparing = null;
+    this.made = new Set();        // edits whose pose is still being made (track())
   }
 
   /** GET /api/pose: the current pose object, as the server keeps it. */
-  get() { return this.apiJSON("/api/pose"); }
+  get() { return this.client.apiJSON("/api/pose"); }
 
-  /** Fetch the current pose's arrays into the store; `object`: the pose object that gave them. */
+  /** Fetch the current pose's arrays (binary rows) into the store; `object`: the pose
+   * object that gave them. */
   async fetch(object = undefined) {
-    this.store.setPose(await this.apiJSON("/api/pose/bones"), object);
+    this.store.setPose(await this.client.poseBones(), object);
   }
 
   /** POST a pose and show it; resolves to the server's pose object. `pose`: a pose
    * object (a pose file's, POST /api/pose), or {world} (the page's world form of a pose,
    * {R, A, S, T}, POST /api/pose/bones: the server makes its forward-kinematics pose). */
   async post(pose) {
-    const options = (body) => ({ method: "POST", headers: { "Content-Type": "application/json" },
-                                 body: JSON.stringify(body) });
     if (pose && pose.world) {
-      const reply = await this.apiJSON("/api/pose/bones", options(pose.world));
+      const reply = await this.client.setWorldPose(pose.world);
       this.store.setPose(reply.bones, reply.pose);
       return reply.pose;
     }
-    const reply = await this.apiJSON("/api/pose", options(pose));
+    const reply = await this.client.apiJSON("/api/pose", {
+      method: "POST", headers: { "Content-Type": "application/json" }, body: JSON.stringify(pose) });
     await this.fetch(pose);
     return reply.pose;
   }
@@ -178,13 +182,18 @@ export class PoseLink {
   /** Count an edit whose pose is still being made (a promise that sends it) as in
    * flight: idle() waits for it too. Returns the promise. */
   track(p) {
-    this.preparing = p;
-    p.finally(() => { if (this.preparing === p) this.preparing = null; }).catch(() => {});
+    this.made.add(p);
+    p.finally(() => this.made.delete(p)).catch(() => {});
     return p;
   }
 
+  /** Whether an edit's pose is still being made (track()). */
+  get preparing() { return this.made.size > 0; }
+
   /** Resolves once no sent pose (or one being made) is in flight. */
   async idle() {
-    while (this.sending || this.preparing) await (this.sending || this.preparing).catch(() => {});
+    while (this.sending || this.made.size) {
+      await Promise.all([this.sending, ...this.made].map((p) => p && p.catch(() => {})));
+    }
   }
 }

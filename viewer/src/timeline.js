@@ -6,7 +6,7 @@
 // capture is held from the start) and evaluates it with stbs.Clip.arrays, so what is
 // shown is Clip.pose exactly, step and cubic channels included. Playback asks for the
 // frames ahead in batches (GET /api/clip/ID/frames?t=...); a seek makes the clip's
-// pose at t the server's current pose (POST /api/clip/ID/pose {time}), so edits start
+// pose at t the server's current pose (POST /api/clip/ID/seek {time}, its bone rows back), so edits start
 // from it. Neither sends the clip again. One implementation of clips (the library's)
 // is why: the page's own would have to follow every kind of channel the readers make.
 
@@ -29,8 +29,10 @@ function finite(name, x) {
 
 export class Timeline {
   /** ctx: {store, history, view, poses, ...}; api(path, options) (a fetch that throws
-   * with the server's message) and status(text, isError) are the page's own. */
-  constructor(ctx, api, status) {
+   * with the server's message), status(text, isError) and seekClip(id, time) (the clip's
+   * pose at a time made current, its bone rows back) are the page's own. */
+  constructor(ctx, api, status, seekClip) {
+    this.seekClip = seekClip;
     this.store = ctx.store;
     this.history = ctx.history;
     this.view = ctx.view;
@@ -313,13 +315,13 @@ export class Timeline {
    */
   show(t) {
     const run = async () => {
-      const reply = await this.withClip((id) => this.apiJSON(`/api/clip/${id}/pose`, this.post({ time: t })));
-      await this.poses.fetch(reply.pose);
+      const bones = await this.withClip((id) => this.seekClip(id, t));
+      this.store.setPose(bones, await this.poses.get());     // and the pose object of it
       this.time = t;
       this.updateBar();
-      return reply;
+      return { time: t };
     };
-    const mine = (this.showing || Promise.resolve()).catch(() => {}).then(run);
+    const mine = this.poses.track((this.showing || Promise.resolve()).catch(() => {}).then(run));
     this.showing = mine;
     mine.finally(() => { if (this.showing === mine) this.showing = null; }).catch(() => {});
     return mine;
