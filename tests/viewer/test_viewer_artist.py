@@ -186,6 +186,9 @@ def test_shortcuts_and_their_help_overlay_do_nothing_while_typing(figure):
     kb.press(" ")
     p.page.wait_for_function("() => !stbsViewer.clipState().playing", timeout=10000)
     p.js("stbsViewer.clearKeys()")
+    kb.press(" ")                      # no keys: Space does nothing (no error either)
+    assert not p.js("stbsViewer.clipState().playing")
+    assert p.page.locator("#status.error").count() == 0
 
 
 # --------------------------------------------------------------------------- mirror
@@ -329,6 +332,9 @@ def test_at_1024x600_the_panels_never_cover_the_framed_character(browser):  # no
             for sel in ("#hud", "#panel", "#weights-panel", "#timeline-panel"):
                 r = _rect(p, sel)
                 assert not _overlap(box, r), f"{sel} {r} covers the character {box}"
+            print(f"1024x600, panels {'collapsed' if collapsed else 'open'}: view "
+                  f"{cam['width']:.0f}x{cam['height']:.0f} at ({cam['left']:.0f}, "
+                  f"{cam['top']:.0f}), mesh box {[round(v) for v in box]}")
             if not collapsed:
                 open_width = cam["width"]
         # collapsed panels leave the canvas more room, and the framing uses it
@@ -387,6 +393,8 @@ def test_without_the_token_the_error_is_shown_in_full_on_top(browser):  # noqa: 
         assert info["visible"] and info["inside"] and info["whole"] and info["onTop"], info
         assert "token" in info["text"].lower(), info["text"]
         assert info["color"] != info["bg"]
+        page.click("#status")               # a click closes the banner
+        assert page.locator("#status.error").count() == 0
         context.close()
     finally:
         p.close()

@@ -59,9 +59,17 @@ function restNormals(P, F, dim) {
   return out;
 }
 
+/** The status line; an error shows in full in a banner over the page (a click closes it). */
 function status(text, isError = false) {
   const el = document.getElementById("status");
-  if (el) { el.textContent = text; el.classList.toggle("error", isError); }
+  if (!el) return;
+  el.textContent = text;
+  el.classList.toggle("error", isError);
+  el.title = isError ? "click to close" : "";
+  if (!el.dataset.closes) {
+    el.dataset.closes = "1";
+    el.addEventListener("click", () => el.classList.remove("error"));
+  }
 }
 
 const SELECTED = 0xffa040;      // the selected bone's colour
@@ -407,7 +415,7 @@ class Viewer {
     const k = this.keys, report = (what) => (err) => status(`${what}: ${err.message}`, true);
     k.register({ key: "Ctrl+Z", label: "undo", run: () => this.history.undo().catch(report("undo")) });
     k.register({ key: "Ctrl+Shift+Z", label: "redo", run: () => this.history.redo().catch(report("redo")) });
-    k.register({ key: "Space", label: "play or pause the clip",
+    k.register({ key: "Space", label: "play or pause the clip", when: () => this.timeline.state().keys > 0,
                  run: () => (this.timeline.playing ? this.timeline.pause() : this.timeline.play()).catch(report("play")) });
     k.register({ key: "F", label: "frame the view on the character", run: () => this.frame() });
     k.register({ key: "Tab", label: "switch between posing and painting",
