@@ -329,9 +329,12 @@ def test_at_1024x600_the_panels_never_cover_the_framed_character(browser):  # no
             sy = cam["top"] + 0.5 * (1 - ndc[:, 1]) * cam["height"]
             box = [sx.min(), sy.min(), sx.max(), sy.max()]
             assert box[0] >= 0 and box[1] >= 0 and box[2] <= 1024 and box[3] <= 600
+            view = [cam["left"], cam["top"], cam["left"] + cam["width"], cam["top"] + cam["height"]]
             for sel in ("#hud", "#panel", "#weights-panel", "#timeline-panel"):
                 r = _rect(p, sel)
                 assert not _overlap(box, r), f"{sel} {r} covers the character {box}"
+                # the view the framing fills is the area the panels leave
+                assert not _overlap(view, r), f"{sel} {r} covers the view {view}"
             print(f"1024x600, panels {'collapsed' if collapsed else 'open'}: view "
                   f"{cam['width']:.0f}x{cam['height']:.0f} at ({cam['left']:.0f}, "
                   f"{cam['top']:.0f}), mesh box {[round(v) for v in box]}")
