@@ -39,11 +39,9 @@ def _check_range(p: Path, idx: np.ndarray, n: int, what: str, lines_at, base: in
 
 # ----------------------------------------------------------------------------- OBJ
 
-def read_obj(p: Path) -> tuple[np.ndarray, Polys, None]:
-    """Wavefront OBJ: ``v x y z [w | r g b]`` and ``f`` with ``v``, ``v/vt``, ``v//vn``,
-    ``v/vt/vn`` corners, 1-based or negative (relative) indices. Other records
-    (``vt``, ``vn``, ``g``, ``o``, ``s``, ``usemtl``, ``l``, ``p``, ...) are ignored."""
-    lines = read_lines(p)
+def _obj_records(lines: list[str]) -> tuple[list[str], list[int], list[tuple[int, list[str], int]]]:
+    """The vertex lines' text after ``v`` and their line numbers, and each face line's
+    (line number, corners, count of vertices before it)."""
     vrec: list[str] = []
     vnum: list[int] = []
     frec: list[tuple[int, list[str], int]] = []
@@ -60,6 +58,38 @@ def read_obj(p: Path) -> tuple[np.ndarray, Polys, None]:
             vnum.append(ln)
         elif c == "f" and s[1:2] in (" ", "\t"):
             frec.append((ln, s[2:].split(), len(vrec)))
+    return vrec, vnum, frec
+
+
+def _obj_corner(p: Path, t: str, nv: int, n: int, ln: int) -> int:
+    """The 0-based vertex of face corner ``t`` on line ``ln`` (``nv`` vertices before
+    it, ``n`` in all)."""
+    head = t.split("/", 1)[0]
+    try:
+        i = int(head)
+    except ValueError:
+        raise FormatError(p, "a face corner 'v', 'v/vt', 'v//vn' or 'v/vt/vn' "
+                          "with an integer v", quote(t), line=ln) from None
+    if i > 0:
+        i -= 1
+    elif i < 0:
+        # Relative index: -1 is the latest vertex defined before this line.
+        if -i > nv:
+            raise FormatError(p, f"a relative vertex index in -{nv}..-1 "
+                              f"({nv} vertices precede this face)", quote(t), line=ln)
+        i += nv
+    else:
+        raise FormatError(p, "a vertex index != 0 (OBJ is 1-based)", quote(t), line=ln)
+    if i >= n:
+        raise FormatError(p, f"a vertex index in 1..{n}", quote(t), line=ln)
+    return i
+
+
+def read_obj(p: Path) -> tuple[np.ndarray, Polys, None]:
+    """Wavefront OBJ: ``v x y z [w | r g b]`` and ``f`` with ``v``, ``v/vt``, ``v//vn``,
+    ``v/vt/vn`` corners, 1-based or negative (relative) indices. Other records
+    (``vt``, ``vn``, ``g``, ``o``, ``s``, ``usemtl``, ``l``, ``p``, ...) are ignored."""
+    vrec, vnum, frec = _obj_records(read_lines(p))
     if not vrec:
         raise FormatError(p, "at least one vertex line 'v x y z'", "none")
     V = parse_block(p, vrec, vnum, 3, "a vertex 'v x y z'")
@@ -68,28 +98,7 @@ def read_obj(p: Path) -> tuple[np.ndarray, Polys, None]:
     for ln, toks, nv in frec:
         if len(toks) < 3:
             raise FormatError(p, "a face with at least 3 vertices", f"{len(toks)}", line=ln)
-        face = []
-        for t in toks:
-            head = t.split("/", 1)[0]
-            try:
-                i = int(head)
-            except ValueError:
-                raise FormatError(p, "a face corner 'v', 'v/vt', 'v//vn' or 'v/vt/vn' "
-                                  "with an integer v", quote(t), line=ln) from None
-            if i > 0:
-                i -= 1
-            elif i < 0:
-                # Relative index: -1 is the latest vertex defined before this line.
-                if -i > nv:
-                    raise FormatError(p, f"a relative vertex index in -{nv}..-1 "
-                                      f"({nv} vertices precede this face)", quote(t), line=ln)
-                i += nv
-            else:
-                raise FormatError(p, "a vertex index != 0 (OBJ is 1-based)", quote(t), line=ln)
-            if i >= n:
-                raise FormatError(p, f"a vertex index in 1..{n}", quote(t), line=ln)
-            face.append(i)
-        faces.append(face)
+        faces.append([_obj_corner(p, t, nv, n, ln) for t in toks])
     return V, _runs(faces), None
 
 
@@ -178,6 +187,45 @@ _MEDIT_SINGULAR = {"triangles": "triangle", "quadrilaterals": "quadrilateral",
 _MEDIT_UNSUPPORTED = ("hexahedra", "prisms", "pyramids")
 
 
+def _medit_count(p: Path, lines: list[str], i: int, kw: str, rest: list[str]
+                 ) -> tuple[int, int, int]:
+    """The non-negative integer after keyword ``kw`` on line ``i`` (same line or the
+    next non-empty one): (value, its line, the line after it)."""
+    if rest:
+        val, at, nxt = rest[0], i, i + 1
+    else:
+        j = i + 1
+        while j < len(lines) and not lines[j].split():
+            j += 1
+        if j == len(lines):
+            raise FormatError(p, f"a value after '{kw}'", "end of file", line=i + 1)
+        val, at, nxt = lines[j].split()[0], j, j + 1
+    try:
+        num = int(val)
+        if num < 0:
+            raise ValueError
+    except ValueError:
+        raise FormatError(p, f"a non-negative integer after '{kw}'", quote(val),
+                          line=at + 1) from None
+    return num, at, nxt
+
+
+def _medit_cells(p: Path, blocks: dict[str, list[tuple[np.ndarray, int]]], n: int
+                 ) -> tuple[Polys, np.ndarray | None]:
+    """The polygons and tetrahedra of the element blocks, checked against ``n``
+    vertices."""
+    polys: Polys = []
+    T = None
+    for key in ("triangles", "quadrilaterals", "tetrahedra"):
+        for E, at in blocks.get(key, []):
+            _check_range(p, E, n, _MEDIT_SINGULAR[key], at, base=1)
+            if key == "tetrahedra":
+                T = E if T is None else np.vstack([T, E])
+            else:
+                polys.append(E)
+    return polys, T
+
+
 def read_medit(p: Path) -> tuple[np.ndarray, Polys, np.ndarray | None]:
     """Medit ``.mesh`` (ASCII): ``Dimension``, ``Vertices`` (coordinates + reference),
     ``Triangles``, ``Quadrilaterals``, ``Tetrahedra`` (1-based + reference). Other
@@ -187,18 +235,6 @@ def read_medit(p: Path) -> tuple[np.ndarray, Polys, np.ndarray | None]:
     dim = 3
     V = None
     blocks: dict[str, list[tuple[np.ndarray, int]]] = {}
-
-    def next_token(i: int, kw: str, rest: list[str]) -> tuple[str, int, int]:
-        """The value after keyword ``kw`` (same line or the next non-empty one)."""
-        if rest:
-            return rest[0], i, i + 1
-        j = i + 1
-        while j < n_lines and not lines[j].split():
-            j += 1
-        if j == n_lines:
-            raise FormatError(p, f"a value after '{kw}'", "end of file", line=i + 1)
-        return lines[j].split()[0], j, j + 1
-
     while i < n_lines:
         toks = lines[i].split()
         if not toks or toks[0].startswith("#"):
@@ -207,14 +243,7 @@ def read_medit(p: Path) -> tuple[np.ndarray, Polys, np.ndarray | None]:
         kw, key = toks[0], toks[0].lower()
         if key == "end":
             break
-        val, at, nxt = next_token(i, kw, toks[1:])
-        try:
-            num = int(val)
-            if num < 0:
-                raise ValueError
-        except ValueError:
-            raise FormatError(p, f"a non-negative integer after '{kw}'", quote(val),
-                              line=at + 1) from None
+        num, at, nxt = _medit_count(p, lines, i, kw, toks[1:])
         if key == "meshversionformatted":
             i = nxt
             continue
@@ -241,16 +270,7 @@ def read_medit(p: Path) -> tuple[np.ndarray, Polys, np.ndarray | None]:
         i = stop
     if V is None:
         raise FormatError(p, "a Vertices block", "none")
-    n = V.shape[0]
-    polys: Polys = []
-    T = None
-    for key in ("triangles", "quadrilaterals", "tetrahedra"):
-        for E, at in blocks.get(key, []):
-            _check_range(p, E, n, _MEDIT_SINGULAR[key], at, base=1)
-            if key == "tetrahedra":
-                T = E if T is None else np.vstack([T, E])
-            else:
-                polys.append(E)
+    polys, T = _medit_cells(p, blocks, V.shape[0])
     return V, polys, T
 
 
