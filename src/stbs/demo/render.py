@@ -311,6 +311,17 @@ class Panel:
     shading: Literal["smooth", "flat"] = "smooth"
 
     def __post_init__(self) -> None:
+        n, d = self._check_mesh()
+        self.C, self.BE = _skeleton_arrays(self.C, self.BE, d)
+        self._check_scalars(n)
+        if not isinstance(self.cmap, str):
+            raise ValueError(f"cmap must be a matplotlib colour map name, got {self.cmap!r}")
+        self._check_colors(n)
+        self._check_camera()
+        self._check_options()
+
+    def _check_mesh(self) -> tuple[int, int]:
+        """``V`` and ``F`` checked and converted; ``V``'s shape (n, d)."""
         self.V = _checks.vertices(self.V)
         n, d = self.V.shape
         self.F = _checks.index_array("F", self.F, ndim=2, shape=(None, 3))
@@ -318,7 +329,10 @@ class Panel:
             bad = np.flatnonzero(((self.F < 0) | (self.F >= n)).any(axis=1))[0]
             raise ValueError(f"F must index the {n} rows of V (0 <= F < {n}), got "
                              f"{self.F[bad].tolist()} in face {bad}")
-        self.C, self.BE = _skeleton_arrays(self.C, self.BE, d)
+        return n, d
+
+    def _check_scalars(self, n: int) -> None:
+        """At most one colouring; ``scalars`` with its range, isolines and mask."""
         given = [k for k in ("scalars", "colors", "texture") if getattr(self, k) is not None]
         if len(given) > 1:
             raise ValueError(f"give at most one of scalars, colors, texture; got {given}")
@@ -347,8 +361,9 @@ class Panel:
                 raise ValueError(f"mask must be a ({n},) bool array, one per row of V, got "
                                  f"{m.dtype} of shape {m.shape}")
             self.mask = m
-        if not isinstance(self.cmap, str):
-            raise ValueError(f"cmap must be a matplotlib colour map name, got {self.cmap!r}")
+
+    def _check_colors(self, n: int) -> None:
+        """``colors``, ``texture`` and its ``uv`` checked and converted."""
         if self.colors is not None:
             self.colors = self._colors(self.colors, n)
         if self.texture is not None:
@@ -363,6 +378,9 @@ class Panel:
             if self.uv.shape != (n, 2):
                 raise ValueError(f"uv must have shape ({n}, 2), one (u, v) per row of V, "
                                  f"got {self.uv.shape}")
+
+    def _check_camera(self) -> None:
+        """``camera`` a Camera or None; a texture only on a mesh drawn flat."""
         if self.camera is not None and not isinstance(self.camera, Camera):
             raise ValueError(f"camera must be a Camera, got {type(self.camera).__name__}")
         if self.texture is not None and not self.flat:
@@ -370,6 +388,9 @@ class Panel:
             raise ValueError("texture is drawn only on 2D meshes (V of shape (n, 2), or "
                              f"z == 0 and no camera), got V of shape {self.V.shape} with "
                              f"z in [{z.min():.3g}, {z.max():.3g}]")
+
+    def _check_options(self) -> None:
+        """The titles, ``shading``, ``wireframe`` and ``cull``."""
         for name in ("title", "subtitle"):
             if not isinstance(getattr(self, name), str):
                 raise ValueError(f"{name} must be a str, got {getattr(self, name)!r}")
