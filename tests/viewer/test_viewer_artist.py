@@ -103,6 +103,16 @@ def test_a_click_on_a_bone_selects_it_highlighted_and_the_list_follows(figure):
     # drawn wider than a plain bone: the colour spans several pixels across the bone
     column = np.abs(img[int(y) - 6:int(y) + 7, int(x)] - np.array(SELECTED)).max(axis=1)
     assert int((column <= 40).sum()) >= 3
+    # a ring round its start joint (arm.L starts at joint 1 and points along +x): the
+    # selection colour 11 pixels from the joint in directions away from the bone
+    jx, jy = p.js("stbsViewer.jointScreenPositions()")[1]
+    hits = 0
+    for deg in range(40, 330, 10):
+        t = np.radians(deg)
+        ring = img[int(round(jy - 11 * np.sin(t))) - 1:int(round(jy - 11 * np.sin(t))) + 2,
+                   int(round(jx + 11 * np.cos(t))) - 1:int(round(jx + 11 * np.cos(t))) + 2]
+        hits += int(np.abs(ring.reshape(-1, 3) - np.array(SELECTED)).max(axis=1).min() <= 40)
+    assert hits >= 20, f"the joint ring shows at {hits} of 29 directions"
     # a click on empty space, or a drag of the camera from there, keeps the selection
     rect = p.js("stbsViewer.camera()")
     ex, ey = rect["left"] + 5, rect["top"] + rect["height"] - 5
