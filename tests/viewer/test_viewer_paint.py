@@ -514,10 +514,11 @@ def test_recompute_one_bones_endpoint_weights_by_projection(plate):
     p.js("document.getElementById('weights-panel').open = false")
     assert p.js("stbsViewer.paintUndo()") is True
     assert np.array_equal(_weights(p)[1], E0)
-    with pytest.raises(Exception, match="endpoint method: expected one of projection"):
+    bad_method = 'endpoint method: expected one of .*projection.*, got "nearest"'
+    with pytest.raises(Exception, match=bad_method):
         p.js("stbsViewer.recomputeEndpoint(0, 'nearest')")
     with pytest.raises(Exception, match="alpha applies to method='idw' only"):   # the server's 400
-        p.js("stbsViewer.recomputeEndpoint(0, 'heat', {alpha: 3})")
+        p.js("stbsViewer.recomputeEndpoint(0, 'projection', {alpha: 3})")
     _no_errors(p)
 
 

@@ -16,7 +16,7 @@ import { SplineEditor, splineFilter } from "./spline.js";
 import { Brush, FALLOFFS, PAINT_OPS, adjacency } from "./brush.js";
 import { RowLog, layoutRows, restoreRows, rowRanges, setBoneWeight } from "./weightrows.js";
 import { centreX, mirrorBones, mirrorVertices } from "./mirror.js";
-import { api as defaultApi } from "./api.js";
+import { api as defaultApi, cancelJob, jobResult, jobStatus, saveRig as postRig, startEndpointJob } from "./api.js";
 
 export { FALLOFFS, PAINT_OPS };
 /** Colour modes, in the order of the shader's uColorMode (skin.js). */
@@ -597,29 +597,25 @@ export class WeightEditor {
       throw bad("endpoint options", "an object", options);
     }
     if (this.job) throw new Error(`an endpoint recompute is running (${this.job.method}); cancel it first`);
-    const body = { bone: i, method, options };
+    let W = null;
     if (!sameArray(this.W, this.serverW)) {     // painted since loaded or saved: send ours
-      const W = [], b = this.b;
+      const b = this.b;
+      W = [];
       for (let r = 0; r < this.n; r++) W.push(Array.from(this.W.subarray(r * b, (r + 1) * b)));
-      body.W = W;
     }
-    const json = async (path, opts) => (await this.api(path, opts)).json();
-    const post = (obj) => ({ method: "POST", headers: { "Content-Type": "application/json" },
-                             body: obj === undefined ? undefined : JSON.stringify(obj) });
-    let st = await json("/api/jobs/endpoint", post(body));
-    const id = st.job || st.id;
-    this.job = { id, method, cancelled: false };
+    const id = await startEndpointJob(i, method, { W, options });
+    this.job = { id, method };
     try {
+      let st = await jobStatus(id);
       while (st.state === "running") {
         if (onProgress) onProgress(st);
         await new Promise((ok) => setTimeout(ok, 100));
-        st = await json(`/api/jobs/${id}`);
+        st = await jobStatus(id);
       }
       if (onProgress) onProgress(st);
       if (st.state === "cancelled") throw new Error(`recompute (${method}): cancelled`);
       if (st.state !== "done") throw new Error(`recompute (${method}): ${st.error || st.state}`);
-      const r = await this.api(`/api/jobs/${id}/result`, { headers: { Accept: "application/octet-stream" } });
-      const col = new Float32Array(await r.arrayBuffer());
+      const col = await jobResult(id);
       if (col.length !== this.n) throw new Error(`/api/jobs/${id}/result: expected ${this.n} values, got ${col.length}`);
       this.setEndpointColumn(i, col, `recompute endpoint weights (${method})`);
       return col;
@@ -632,7 +628,7 @@ export class WeightEditor {
   async cancelRecompute() {
     const job = this.job;
     if (!job) return false;
-    await this.api(`/api/jobs/${job.id}/cancel`, { method: "POST" });
+    await cancelJob(job.id);
     return true;
   }
 
@@ -642,16 +638,10 @@ export class WeightEditor {
    */
   async saveRig(overwrite = false) {
     if (typeof overwrite !== "boolean") throw bad("overwrite", "true or false", overwrite);
-    const nb = this.n * this.b, body = new Float32Array(2 * nb);
-    body.set(this.W, 0);
-    body.set(this.E, nb);
     const sent = this.W.slice();
-    const r = await this.api("/api/save-rig", {
-      method: "POST", body: body.buffer,
-      headers: { "Content-Type": "application/octet-stream", "X-Stbs-Arrays": "W,E", "X-Stbs-Dtype": "float32",
-                 "X-Stbs-Overwrite": String(overwrite) } });
+    const reply = await postRig(this.W, this.E, { overwrite });
     this.serverW = sent;          // the rig served now has these weights
-    return r.json();
+    return reply;
   }
 
   /** The save button: save; where the file exists, ask before writing over it. */
