@@ -157,8 +157,10 @@ def test_shortcuts_and_their_help_overlay_do_nothing_while_typing(figure):
     assert p.js("stbsViewer.store()")["mirror"] is False
     kb.press("Tab")
     assert p.js("stbsViewer.store()")["mode"] == "paint"
+    assert p.js("stbsViewer.paint()")["mode"] == "bone"      # the brush is on
     kb.press("Tab")
     assert p.js("stbsViewer.store()")["mode"] == "pose"
+    assert p.js("stbsViewer.paint()")["mode"] == "off"
     # typing in a field: the keys are text there
     p.page.click("#pose-name")
     kb.type("x?")

@@ -141,6 +141,13 @@ class Viewer {
     this.poseFiles = new PoseFiles(ctx, apiJSON, status);
     this.timeline = new Timeline(ctx, api, status, seekClip);
     this.registerKeys();
+    // the mode (Tab, store.mode) switches the painter on (bone weights, the brush as it
+    // was) and off; the painter's own menu sets the mode the other way
+    this.events.on("mode", ({ mode }) => {
+      const painting = this.weights.paintSettings().mode !== "off";
+      if (mode === "paint" && !painting) this.weights.setPaint({ mode: "bone" });
+      if (mode === "pose" && painting) this.weights.setPaint({ mode: "off" });
+    });
     this.store.select(0);
     if (info.clip) {        // started with a clip (stbs view RIG --motion FILE): on the timeline
       await this.timeline.open(await apiJSON("/api/clip"));
