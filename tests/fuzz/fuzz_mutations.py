@@ -416,164 +416,244 @@ def _uri(text: str, env: dict) -> str:
             .replace("UP", env["up"]))
 
 
+def _op_set(g: Gltf, op, env: dict) -> None:
+    """("set", section, i, key, value): a value put under a key of an item."""
+    x = _pick(g.doc, op[1], op[2])
+    if isinstance(x, dict):
+        keys = _SECTIONS[op[1]]
+        x[keys[op[3] % len(keys)]] = copy.deepcopy(op[4])
+
+
+def _op_typed(g: Gltf, op, env: dict) -> None:
+    """("typed", section, i, key, k): a value made for that key."""
+    x = _pick(g.doc, op[1], op[2])
+    if isinstance(x, dict):
+        keys = _SECTIONS[op[1]]
+        key = keys[op[3] % len(keys)]
+        vals = _SPECIAL.get(key) or [-1, 0, 1, 2, 3, 2**31, 2**32 + 1, 10**15]
+        x[key] = copy.deepcopy(vals[op[4] % len(vals)])
+
+
+def _op_ext(g: Gltf, op, env: dict) -> None:
+    """("ext", name, required): an extension used (and required)."""
+    d = g.doc
+    for name in ("extensionsUsed", "extensionsRequired")[:1 + op[2]]:
+        if not isinstance(d.get(name), list):
+            d[name] = []
+        d[name].append(op[1])
+
+
+def _op_del(g: Gltf, op, env: dict) -> None:
+    """("del", section, i, key): a key of an item deleted."""
+    x = _pick(g.doc, op[1], op[2])
+    keys = _SECTIONS[op[1]]
+    if isinstance(x, dict):
+        x.pop(keys[op[3] % len(keys)], None)
+
+
+def _primitive(d: dict, m: int, k: int) -> dict | None:
+    """Primitive ``k`` (modulo) of mesh ``m`` (modulo), if it is a JSON object."""
+    mesh = _pick(d, "meshes", m)
+    prims = mesh.get("primitives") if isinstance(mesh, dict) else None
+    if isinstance(prims, list) and prims and isinstance(prims[k % len(prims)], dict):
+        return prims[k % len(prims)]
+    return None
+
+
+def _op_prim(g: Gltf, op, env: dict) -> None:
+    """("prim", mesh, primitive, key, value): a primitive's key set."""
+    p = _primitive(g.doc, op[1], op[2])
+    if p is not None:
+        p[op[3]] = copy.deepcopy(op[4])
+
+
+def _op_attr(g: Gltf, op, env: dict) -> None:
+    """("attr", mesh, primitive, attribute, index): a primitive's attribute set."""
+    p = _primitive(g.doc, op[1], op[2])
+    if p is not None and isinstance(p.get("attributes"), dict):
+        p["attributes"][op[3]] = op[4]
+
+
+def _op_animation(g: Gltf, op, env: dict) -> None:
+    """("sampler" | "target", animation, i, key, value): a key of an animation's sampler,
+    or of a channel's target, set."""
+    kind = op[0]
+    a = _pick(g.doc, "animations", op[1])
+    arr = a.get("samplers" if kind == "sampler" else "channels") \
+        if isinstance(a, dict) else None
+    if isinstance(arr, list) and arr and isinstance(arr[op[2] % len(arr)], dict):
+        x = arr[op[2] % len(arr)]
+        if kind == "target":
+            x = x.setdefault("target", {}) if isinstance(x.get("target", {}), dict) \
+                else x
+        x[op[3]] = copy.deepcopy(op[4])
+
+
+def _op_uri(g: Gltf, op, env: dict) -> None:
+    """("uri", "buffer" | "image" | "unused", i, text): a URI (leading to the canary,
+    through links too) on a buffer, a new image or a new buffer nothing uses."""
+    d = g.doc
+    uri = _uri(op[3], env)
+    if uri == "link.bin":
+        g.links["link.bin"] = env["canary"]
+    elif uri.startswith("linkdir/"):
+        g.links["linkdir"] = env["canary_dir"]
+    if op[1] == "buffer":
+        x = _pick(d, "buffers", op[2])
+        if isinstance(x, dict):
+            x["uri"] = uri
+    elif op[1] == "image":
+        imgs = d.setdefault("images", [])
+        if isinstance(imgs, list):
+            imgs.append({"uri": uri})
+    else:                               # a buffer nothing uses
+        bufs = d.setdefault("buffers", [])
+        if isinstance(bufs, list):
+            bufs.append({"uri": uri, "byteLength": 64})
+
+
+def _op_fill(g: Gltf, op, env: dict) -> None:
+    """("fill", accessor, pattern, all): an accessor's data (or one value of it)
+    overwritten with a pattern."""
+    a = _pick(g.doc, "accessors", op[1])
+    span = _accessor_span(g, a)
+    if span:
+        start, n = span
+        if op[3]:                                       # all of it
+            g.bin[start:start + n] = (op[2] * (n // 4 + 1))[:n]
+        elif n >= 4:                                    # one value
+            k = (op[1] * 4) % max(n - 3, 1)
+            g.bin[start + k:start + k + 4] = op[2]
+
+
+def _op_edge(g: Gltf, op, env: dict) -> None:
+    """("edge", a, b): node b made a child of node a (cycles, two parents)."""
+    nodes = _list(g.doc, "nodes")
+    if nodes:
+        a, b = nodes[op[1] % len(nodes)], op[2] % len(nodes)
+        if isinstance(a, dict):
+            ch = a.setdefault("children", [])
+            if isinstance(ch, list):
+                ch.append(b)
+
+
+def _op_empty(g: Gltf, op, env: dict) -> None:
+    """("empty", what, i): a top-level list, a skin's joints or a mesh's primitives
+    emptied."""
+    d = g.doc
+    what = op[1]
+    if what == "joints":
+        s = _pick(d, "skins", op[2])
+        if isinstance(s, dict):
+            s["joints"] = []
+    elif what == "primitives":
+        m = _pick(d, "meshes", op[2])
+        if isinstance(m, dict):
+            m["primitives"] = []
+    else:
+        d[what] = []
+
+
+def _op_keys(g: Gltf, op, env: dict) -> None:
+    """("keys", animation, n): see :func:`_more_keys`."""
+    _more_keys(g, op[1], op[2])
+
+
+def _op_morph(g: Gltf, op, env: dict) -> None:
+    """("morph", mesh, accessor, weight): a morph target, on by default."""
+    d = g.doc
+    m = _pick(d, "meshes", op[1])
+    a = _pick(d, "accessors", op[2])
+    prims = m.get("primitives") if isinstance(m, dict) else None
+    if isinstance(prims, list) and prims and isinstance(prims[0], dict) and a:
+        attrs = prims[0].get("attributes")
+        pos = attrs.get("POSITION") if isinstance(attrs, dict) else None
+        target = pos if op[2] % 2 else op[2] % len(d["accessors"])
+        prims[0].setdefault("targets", [])
+        if isinstance(prims[0]["targets"], list):
+            prims[0]["targets"].append({"POSITION": target})
+            m["weights"] = [op[3]] * len(prims[0]["targets"])
+
+
+def _op_chain(g: Gltf, op, env: dict) -> None:
+    """("chain", joint, n): a chain of n joints below a joint of skin 0."""
+    skin, nodes = _pick(g.doc, "skins", 0), _list(g.doc, "nodes")
+    joints = skin.get("joints") if isinstance(skin, dict) else None
+    if nodes and isinstance(joints, list) and joints:
+        top = joints[op[1] % len(joints)]
+        if isinstance(top, int) and 0 <= top < len(nodes) and \
+                isinstance(nodes[top], dict):
+            first = len(nodes)
+            nodes += [{"name": f"chain{m}", "translation": [0, 0.01, 0],
+                       "children": [first + m + 1]} for m in range(op[2])]
+            del nodes[-1]["children"]
+            ch = nodes[top].setdefault("children", [])
+            if isinstance(ch, list):
+                ch.append(first)
+            joints += range(first, first + op[2])
+            skin.pop("inverseBindMatrices", None)   # (binds: the identity)
+
+
+def _op_rigid(g: Gltf, op, env: dict) -> None:
+    """("rigid", node, mesh): a mesh hung on a node, without a skin."""
+    nodes, meshes = _list(g.doc, "nodes"), _list(g.doc, "meshes")
+    if nodes and meshes and isinstance(nodes[op[1] % len(nodes)], dict):
+        nodes.append({"name": "part", "mesh": op[2] % len(meshes),
+                      "translation": [0, 0.1, 0]})
+        ch = nodes[op[1] % len(nodes)].setdefault("children", [])
+        if isinstance(ch, list):
+            ch.append(len(nodes) - 1)
+
+
+def _op_second_skin(g: Gltf, op, env: dict) -> None:
+    """("second-skin", skin, mesh node, no binds): a second skin over the joints, bound
+    to a mesh node."""
+    skins, nodes = _list(g.doc, "skins"), _list(g.doc, "nodes")
+    if skins and nodes and isinstance(skins[op[1] % len(skins)], dict):
+        sk = copy.deepcopy(skins[op[1] % len(skins)])
+        if op[3]:
+            sk.pop("inverseBindMatrices", None)
+        skins.append(sk)
+        with_mesh = [n for n in nodes if isinstance(n, dict) and "mesh" in n]
+        if with_mesh:
+            with_mesh[op[2] % len(with_mesh)]["skin"] = len(skins) - 1
+
+
+def _op_external(g: Gltf, op, env: dict) -> None:
+    """("external", spaced): buffer 0 in a file beside the glTF."""
+    bufs = _list(g.doc, "buffers")
+    if bufs and isinstance(bufs[0], dict):
+        g.external = "my buf.bin" if op[1] else "buf.bin"
+        bufs[0]["uri"] = "my%20buf.bin" if op[1] else "buf.bin"
+
+
+def _op_glb(g: Gltf, op, env: dict) -> None:
+    """("glb", tweak): a GLB header or chunk tweak, applied when packing."""
+    g.header.append(op[1])
+
+
+#: The glTF mutations but "json", by kind: each changes ``g`` in place.
+_GLTF_OPS = {"set": _op_set, "typed": _op_typed, "ext": _op_ext, "del": _op_del,
+             "prim": _op_prim, "attr": _op_attr, "sampler": _op_animation,
+             "target": _op_animation, "uri": _op_uri, "fill": _op_fill, "edge": _op_edge,
+             "empty": _op_empty, "keys": _op_keys, "morph": _op_morph, "chain": _op_chain,
+             "rigid": _op_rigid, "second-skin": _op_second_skin, "external": _op_external,
+             "glb": _op_glb}
+
+
 def apply_gltf(g: Gltf, ops, env: dict) -> Gltf:
     """``g`` (copied) with the glTF mutations ``ops`` applied; ``env`` names the canary
     (``canary``: its absolute path, ``secret``: its name, ``up``: ``../`` from the
     case folder to its folder)."""
     g = Gltf(copy.deepcopy(g.doc), bytearray(g.bin), g.glb, g.external, dict(g.links),
              list(g.header))
-    d = g.doc
     for op in ops:
-        kind = op[0]
-        if kind == "json":
-            g.doc = d = apply_json(d, [op[1]])
-            if not isinstance(d, dict):
+        if op[0] == "json":
+            g.doc = apply_json(g.doc, [op[1]])
+            if not isinstance(g.doc, dict):
                 break
-        elif kind == "set":
-            x = _pick(d, op[1], op[2])
-            if isinstance(x, dict):
-                keys = _SECTIONS[op[1]]
-                x[keys[op[3] % len(keys)]] = copy.deepcopy(op[4])
-        elif kind == "typed":                       # a value made for that key
-            x = _pick(d, op[1], op[2])
-            if isinstance(x, dict):
-                keys = _SECTIONS[op[1]]
-                key = keys[op[3] % len(keys)]
-                vals = _SPECIAL.get(key) or [-1, 0, 1, 2, 3, 2**31, 2**32 + 1, 10**15]
-                x[key] = copy.deepcopy(vals[op[4] % len(vals)])
-        elif kind == "ext":
-            for name in ("extensionsUsed", "extensionsRequired")[:1 + op[2]]:
-                if not isinstance(d.get(name), list):
-                    d[name] = []
-                d[name].append(op[1])
-        elif kind == "del":
-            x = _pick(d, op[1], op[2])
-            keys = _SECTIONS[op[1]]
-            if isinstance(x, dict):
-                x.pop(keys[op[3] % len(keys)], None)
-        elif kind in ("prim", "attr"):
-            m = _pick(d, "meshes", op[1])
-            prims = m.get("primitives") if isinstance(m, dict) else None
-            if isinstance(prims, list) and prims and isinstance(prims[op[2] % len(prims)],
-                                                                dict):
-                p = prims[op[2] % len(prims)]
-                if kind == "prim":
-                    p[op[3]] = copy.deepcopy(op[4])
-                elif isinstance(p.get("attributes"), dict):
-                    p["attributes"][op[3]] = op[4]
-        elif kind in ("sampler", "target"):
-            a = _pick(d, "animations", op[1])
-            arr = a.get("samplers" if kind == "sampler" else "channels") \
-                if isinstance(a, dict) else None
-            if isinstance(arr, list) and arr and isinstance(arr[op[2] % len(arr)], dict):
-                x = arr[op[2] % len(arr)]
-                if kind == "target":
-                    x = x.setdefault("target", {}) if isinstance(x.get("target", {}), dict) \
-                        else x
-                x[op[3]] = copy.deepcopy(op[4])
-        elif kind == "uri":
-            uri = _uri(op[3], env)
-            if uri == "link.bin":
-                g.links["link.bin"] = env["canary"]
-            elif uri.startswith("linkdir/"):
-                g.links["linkdir"] = env["canary_dir"]
-            if op[1] == "buffer":
-                x = _pick(d, "buffers", op[2])
-                if isinstance(x, dict):
-                    x["uri"] = uri
-            elif op[1] == "image":
-                imgs = d.setdefault("images", [])
-                if isinstance(imgs, list):
-                    imgs.append({"uri": uri})
-            else:                               # a buffer nothing uses
-                bufs = d.setdefault("buffers", [])
-                if isinstance(bufs, list):
-                    bufs.append({"uri": uri, "byteLength": 64})
-        elif kind == "fill":
-            a = _pick(d, "accessors", op[1])
-            span = _accessor_span(g, a)
-            if span:
-                start, n = span
-                if op[3]:                                       # all of it
-                    g.bin[start:start + n] = (op[2] * (n // 4 + 1))[:n]
-                elif n >= 4:                                    # one value
-                    k = (op[1] * 4) % max(n - 3, 1)
-                    g.bin[start + k:start + k + 4] = op[2]
-        elif kind == "edge":
-            nodes = _list(d, "nodes")
-            if nodes:
-                a, b = nodes[op[1] % len(nodes)], op[2] % len(nodes)
-                if isinstance(a, dict):
-                    ch = a.setdefault("children", [])
-                    if isinstance(ch, list):
-                        ch.append(b)
-        elif kind == "empty":
-            what = op[1]
-            if what == "joints":
-                s = _pick(d, "skins", op[2])
-                if isinstance(s, dict):
-                    s["joints"] = []
-            elif what == "primitives":
-                m = _pick(d, "meshes", op[2])
-                if isinstance(m, dict):
-                    m["primitives"] = []
-            else:
-                d[what] = []
-        elif kind == "keys":
-            _more_keys(g, op[1], op[2])
-        elif kind == "morph":                       # a morph target, on by default
-            m = _pick(d, "meshes", op[1])
-            a = _pick(d, "accessors", op[2])
-            prims = m.get("primitives") if isinstance(m, dict) else None
-            if isinstance(prims, list) and prims and isinstance(prims[0], dict) and a:
-                attrs = prims[0].get("attributes")
-                pos = attrs.get("POSITION") if isinstance(attrs, dict) else None
-                target = pos if op[2] % 2 else op[2] % len(d["accessors"])
-                prims[0].setdefault("targets", [])
-                if isinstance(prims[0]["targets"], list):
-                    prims[0]["targets"].append({"POSITION": target})
-                    m["weights"] = [op[3]] * len(prims[0]["targets"])
-        elif kind == "chain":                       # a chain of joints below a joint
-            skin, nodes = _pick(d, "skins", 0), _list(d, "nodes")
-            joints = skin.get("joints") if isinstance(skin, dict) else None
-            if nodes and isinstance(joints, list) and joints:
-                top = joints[op[1] % len(joints)]
-                if isinstance(top, int) and 0 <= top < len(nodes) and \
-                        isinstance(nodes[top], dict):
-                    first = len(nodes)
-                    nodes += [{"name": f"chain{m}", "translation": [0, 0.01, 0],
-                               "children": [first + m + 1]} for m in range(op[2])]
-                    del nodes[-1]["children"]
-                    ch = nodes[top].setdefault("children", [])
-                    if isinstance(ch, list):
-                        ch.append(first)
-                    joints += range(first, first + op[2])
-                    skin.pop("inverseBindMatrices", None)   # (binds: the identity)
-        elif kind == "rigid":                       # a mesh hung on a node, without a skin
-            nodes, meshes = _list(d, "nodes"), _list(d, "meshes")
-            if nodes and meshes and isinstance(nodes[op[1] % len(nodes)], dict):
-                nodes.append({"name": "part", "mesh": op[2] % len(meshes),
-                              "translation": [0, 0.1, 0]})
-                ch = nodes[op[1] % len(nodes)].setdefault("children", [])
-                if isinstance(ch, list):
-                    ch.append(len(nodes) - 1)
-        elif kind == "second-skin":                 # a second skin over the joints
-            skins, nodes = _list(d, "skins"), _list(d, "nodes")
-            if skins and nodes and isinstance(skins[op[1] % len(skins)], dict):
-                sk = copy.deepcopy(skins[op[1] % len(skins)])
-                if op[3]:
-                    sk.pop("inverseBindMatrices", None)
-                skins.append(sk)
-                with_mesh = [n for n in nodes if isinstance(n, dict) and "mesh" in n]
-                if with_mesh:
-                    with_mesh[op[2] % len(with_mesh)]["skin"] = len(skins) - 1
-        elif kind == "external":
-            bufs = _list(d, "buffers")
-            if bufs and isinstance(bufs[0], dict):
-                g.external = "my buf.bin" if op[1] else "buf.bin"
-                bufs[0]["uri"] = "my%20buf.bin" if op[1] else "buf.bin"
-        elif kind == "glb":
-            g.header.append(op[1])
+        elif op[0] in _GLTF_OPS:
+            _GLTF_OPS[op[0]](g, op, env)
     return g
 
 
@@ -667,138 +747,204 @@ def _channels(lines: list[str]) -> list[tuple[int, int]]:
     return out
 
 
+def _where(lines: list[str], prefix: str) -> list[int]:
+    """The lines whose first word starts with ``prefix``."""
+    return [k for k, s in enumerate(lines) if s.strip().split(" ")[0].startswith(prefix)]
+
+
+def _bvh_resize(lines, op, motion, rows, chans) -> None:
+    """("resize", n): the motion rows repeated or cut to n, and the frame count said."""
+    if not rows:
+        return
+    body = [lines[r] for r in rows]
+    body = (body * (op[1] // len(body) + 1))[:op[1]]
+    lines[motion + 3:] = body
+    for k in _where(lines, "Frames:"):
+        lines[k] = f"Frames: {op[1]}"
+
+
+def _bvh_value(lines, op, motion, rows, chans) -> None:
+    """("value", row, column, text): one motion value replaced."""
+    if not rows:
+        return
+    k = rows[op[1] % len(rows)]
+    parts = lines[k].split()
+    if parts:
+        parts[op[2] % len(parts)] = op[3]
+        lines[k] = " ".join(parts)
+
+
+def _bvh_order(lines, op, motion, rows, chans) -> None:
+    """("order", joint, permutation): a joint's rotation channels reordered."""
+    if not chans:
+        return
+    k, _ = chans[op[1] % len(chans)]
+    parts = lines[k].split()
+    rot = [m for m, w in enumerate(parts) if w.lower().endswith("rotation")]
+    if len(rot) == 3:
+        names = [parts[m] for m in rot]
+        for m, perm in zip(rot, op[2], strict=True):
+            parts[m] = names[perm]
+        lines[k] = " ".join(parts)
+
+
+def _bvh_columns(lines, op, motion, rows, chans) -> None:
+    """("drop", joint): a joint's channels and their columns removed; ("position",
+    joint): position channels (columns of zeros) given to a joint without them."""
+    if not chans:
+        return
+    kind = op[0]
+    k, col = chans[op[1] % len(chans)]
+    parts = lines[k].split()
+    n = int(parts[1]) if len(parts) > 1 and parts[1].isdigit() else 0
+    for r in rows:
+        vals = lines[r].split()
+        if kind == "drop":
+            del vals[col:col + n]
+        elif not any(w.lower().endswith("position") for w in parts):
+            vals[col:col] = ["0", "0", "0"]
+        lines[r] = " ".join(vals)
+    if kind == "drop":
+        lines[k] = "CHANNELS 0"
+    elif not any(w.lower().endswith("position") for w in parts):
+        lines[k] = f"CHANNELS {n + 3} Xposition Yposition Zposition " + \
+            " ".join(parts[2:])
+
+
+def _bvh_frames(lines, op, motion, rows, chans) -> None:
+    """("frames", text): the frame count line said otherwise."""
+    for k in _where(lines, "Frames:"):
+        lines[k] = f"Frames: {op[1]}"
+
+
+def _bvh_frametime(lines, op, motion, rows, chans) -> None:
+    """("frametime", text): the frame time line said otherwise."""
+    for k in [k for k, s in enumerate(lines) if s.strip().startswith("Frame Time")]:
+        lines[k] = f"Frame Time: {op[1]}"
+
+
+def _bvh_channels(lines, op, motion, rows, chans) -> None:
+    """("channels", joint, count): a CHANNELS line's count replaced; ("channel-name",
+    joint, name): one of its names."""
+    ks = _where(lines, "CHANNELS")
+    if ks:
+        k = ks[op[1] % len(ks)]
+        parts = lines[k].split()
+        if op[0] == "channels":
+            lines[k] = f"CHANNELS {op[2]} " + " ".join(parts[2:])
+        elif len(parts) > 2:
+            parts[2 + op[1] % (len(parts) - 2)] = op[2]
+            lines[k] = " ".join(parts)
+
+
+def _bvh_joints(lines, op, motion, rows, chans) -> None:
+    """("deep", end site, n): a chain of n joints; ("wide", end site, n): n sibling
+    joints; put before an End Site's block, in its parent, with their motion columns
+    (zeros)."""
+    ks = _where(lines, "End")
+    if not ks:
+        return
+    k = ks[op[1] % len(ks)]
+    n = op[2]
+    if op[0] == "deep":
+        block = []
+        for m in range(n):
+            block += [f"JOINT deep{m}", "{", "OFFSET 0 0.1 0",
+                      "CHANNELS 3 Zrotation Xrotation Yrotation"]
+        block += ["End Site", "{", "OFFSET 0 0.1 0", "}"] + ["}"] * n
+        extra = 3 * n
+    else:
+        block = []
+        for m in range(n):
+            block += [f"JOINT wide{m}", "{", "OFFSET 0 0.1 0",
+                      "CHANNELS 3 Zrotation Xrotation Yrotation", "End Site",
+                      "{", "OFFSET 0 0.1 0", "}", "}"]
+        extra = 3 * n
+    lines[k:k] = block
+    motion = (_where(lines, "MOTION") or [len(lines)])[0]
+    for r in range(motion + 3, len(lines)):
+        if lines[r].strip():
+            lines[r] = lines[r] + " 0" * extra
+
+
+def _bvh_number(lines, op, motion, rows, chans) -> None:
+    """("number", line, word, text): a number anywhere in the file replaced."""
+    rows = [k for k in range(len(lines)) if any(c.isdigit() for c in lines[k])]
+    if rows:
+        k = rows[op[1] % len(rows)]
+        parts = lines[k].split()
+        nums = [m for m, s in enumerate(parts) if any(c.isdigit() for c in s)]
+        if nums:
+            parts[nums[op[2] % len(nums)]] = op[3]
+            lines[k] = " ".join(parts)
+
+
+def _bvh_offset(lines, op, motion, rows, chans) -> None:
+    """("offset", joint, text): an OFFSET line's values replaced."""
+    ks = _where(lines, "OFFSET")
+    if ks:
+        lines[ks[op[1] % len(ks)]] = f"OFFSET {op[2]}"
+
+
+def _bvh_name(lines, op, motion, rows, chans) -> None:
+    """("name", joint, name): a joint renamed."""
+    ks = _where(lines, "JOINT") + _where(lines, "ROOT")
+    if ks:
+        k = ks[op[1] % len(ks)]
+        lines[k] = f"{lines[k].split()[0]} {op[2]}".rstrip()
+
+
+_ROW_EDITS = {"extra": lambda s: s + " 1 2 3",
+              "short": lambda s: " ".join(s.split()[:-1]),
+              "blank": lambda s: "",
+              "zeros": lambda s: " ".join("0" for _ in s.split()),
+              "huge": lambda s: " ".join("1e308" for _ in s.split())}
+
+
+def _bvh_rows(lines, op, motion, rows, chans) -> None:
+    """("rows", row, how): a line after the motion header cut, doubled or edited."""
+    rows = list(range(motion + 3, len(lines)))
+    if not rows:
+        return
+    k = rows[op[1] % len(rows)]
+    if op[2] == "cut":
+        del lines[k]
+    elif op[2] == "dup":
+        lines.insert(k, lines[k])
+    elif op[2] in _ROW_EDITS:
+        lines[k] = _ROW_EDITS[op[2]](lines[k])
+
+
+def _bvh_line(lines, op, motion, rows, chans) -> None:
+    """("line", line, what): any line deleted or doubled, or a line inserted."""
+    if not lines:
+        return
+    k = op[1] % len(lines)
+    if op[2] == "del":
+        del lines[k]
+    elif op[2] == "dup":
+        lines.insert(k, lines[k])
+    else:
+        lines.insert(k, op[2])
+
+
+#: The BVH mutations by kind: each edits the file's lines in place, given where the
+#: motion part starts, its rows and the CHANNELS lines as they were before it.
+_BVH_OPS = {"resize": _bvh_resize, "value": _bvh_value, "order": _bvh_order,
+            "drop": _bvh_columns, "position": _bvh_columns, "frames": _bvh_frames,
+            "frametime": _bvh_frametime, "channels": _bvh_channels,
+            "channel-name": _bvh_channels, "deep": _bvh_joints, "wide": _bvh_joints,
+            "number": _bvh_number, "offset": _bvh_offset, "name": _bvh_name,
+            "rows": _bvh_rows, "line": _bvh_line}
+
+
 def apply_bvh(text: str, ops) -> str:
     """BVH text with ``ops`` applied (line-based; works on broken files too)."""
     lines = text.splitlines()
-
-    def where(prefix):
-        return [k for k, s in enumerate(lines) if s.strip().split(" ")[0].startswith(prefix)]
-
     for op in ops:
-        kind = op[0]
-        motion = (where("MOTION") or [len(lines)])[0]
+        motion = (_where(lines, "MOTION") or [len(lines)])[0]
         rows = [r for r in range(motion + 3, len(lines)) if lines[r].strip()]
         chans = _channels(lines)
-        if kind == "resize" and rows:
-            body = [lines[r] for r in rows]
-            body = (body * (op[1] // len(body) + 1))[:op[1]]
-            lines[motion + 3:] = body
-            for k in where("Frames:"):
-                lines[k] = f"Frames: {op[1]}"
-        elif kind == "value" and rows:
-            k = rows[op[1] % len(rows)]
-            parts = lines[k].split()
-            if parts:
-                parts[op[2] % len(parts)] = op[3]
-                lines[k] = " ".join(parts)
-        elif kind == "order" and chans:
-            k, _ = chans[op[1] % len(chans)]
-            parts = lines[k].split()
-            rot = [m for m, w in enumerate(parts) if w.lower().endswith("rotation")]
-            if len(rot) == 3:
-                names = [parts[m] for m in rot]
-                for m, perm in zip(rot, op[2], strict=True):
-                    parts[m] = names[perm]
-                lines[k] = " ".join(parts)
-        elif kind in ("drop", "position") and chans:
-            k, col = chans[op[1] % len(chans)]
-            parts = lines[k].split()
-            n = int(parts[1]) if len(parts) > 1 and parts[1].isdigit() else 0
-            for r in rows:
-                vals = lines[r].split()
-                if kind == "drop":
-                    del vals[col:col + n]
-                elif not any(w.lower().endswith("position") for w in parts):
-                    vals[col:col] = ["0", "0", "0"]
-                lines[r] = " ".join(vals)
-            if kind == "drop":
-                lines[k] = "CHANNELS 0"
-            elif not any(w.lower().endswith("position") for w in parts):
-                lines[k] = f"CHANNELS {n + 3} Xposition Yposition Zposition " + \
-                    " ".join(parts[2:])
-        elif kind == "frames":
-            for k in where("Frames:"):
-                lines[k] = f"Frames: {op[1]}"
-        elif kind == "frametime":
-            for k in [k for k, s in enumerate(lines) if s.strip().startswith("Frame Time")]:
-                lines[k] = f"Frame Time: {op[1]}"
-        elif kind in ("channels", "channel-name"):
-            ks = where("CHANNELS")
-            if ks:
-                k = ks[op[1] % len(ks)]
-                parts = lines[k].split()
-                if kind == "channels":
-                    lines[k] = f"CHANNELS {op[2]} " + " ".join(parts[2:])
-                elif len(parts) > 2:
-                    parts[2 + op[1] % (len(parts) - 2)] = op[2]
-                    lines[k] = " ".join(parts)
-        elif kind in ("deep", "wide"):
-            ks = where("End")
-            if ks:
-                k = ks[op[1] % len(ks)]
-                n = op[2]
-                if kind == "deep":
-                    block = []
-                    for m in range(n):
-                        block += [f"JOINT deep{m}", "{", "OFFSET 0 0.1 0",
-                                  "CHANNELS 3 Zrotation Xrotation Yrotation"]
-                    block += ["End Site", "{", "OFFSET 0 0.1 0", "}"] + ["}"] * n
-                    extra = 3 * n
-                else:
-                    block = []
-                    for m in range(n):
-                        block += [f"JOINT wide{m}", "{", "OFFSET 0 0.1 0",
-                                  "CHANNELS 3 Zrotation Xrotation Yrotation", "End Site",
-                                  "{", "OFFSET 0 0.1 0", "}", "}"]
-                    extra = 3 * n
-                # put the new joints before the End Site's block, in its parent
-                lines[k:k] = block
-                motion = (where("MOTION") or [len(lines)])[0]
-                for r in range(motion + 3, len(lines)):
-                    if lines[r].strip():
-                        lines[r] = lines[r] + " 0" * extra
-        elif kind == "number":
-            rows = [k for k in range(len(lines)) if any(c.isdigit() for c in lines[k])]
-            if rows:
-                k = rows[op[1] % len(rows)]
-                parts = lines[k].split()
-                nums = [m for m, s in enumerate(parts) if any(c.isdigit() for c in s)]
-                if nums:
-                    parts[nums[op[2] % len(nums)]] = op[3]
-                    lines[k] = " ".join(parts)
-        elif kind == "offset":
-            ks = where("OFFSET")
-            if ks:
-                lines[ks[op[1] % len(ks)]] = f"OFFSET {op[2]}"
-        elif kind == "name":
-            ks = where("JOINT") + where("ROOT")
-            if ks:
-                k = ks[op[1] % len(ks)]
-                lines[k] = f"{lines[k].split()[0]} {op[2]}".rstrip()
-        elif kind == "rows":
-            rows = list(range(motion + 3, len(lines)))
-            if rows:
-                k = rows[op[1] % len(rows)]
-                if op[2] == "cut":
-                    del lines[k]
-                elif op[2] == "dup":
-                    lines.insert(k, lines[k])
-                elif op[2] == "extra":
-                    lines[k] += " 1 2 3"
-                elif op[2] == "short":
-                    lines[k] = " ".join(lines[k].split()[:-1])
-                elif op[2] == "blank":
-                    lines[k] = ""
-                elif op[2] == "zeros":
-                    lines[k] = " ".join("0" for _ in lines[k].split())
-                elif op[2] == "huge":
-                    lines[k] = " ".join("1e308" for _ in lines[k].split())
-        elif kind == "line" and lines:
-            k = op[1] % len(lines)
-            if op[2] == "del":
-                del lines[k]
-            elif op[2] == "dup":
-                lines.insert(k, lines[k])
-            else:
-                lines.insert(k, op[2])
+        if op[0] in _BVH_OPS:
+            _BVH_OPS[op[0]](lines, op, motion, rows, chans)
     return "\n".join(lines) + "\n"
