@@ -177,6 +177,21 @@ def _digest(p: Path) -> str:
     return hashlib.sha256(p.read_bytes()).hexdigest()
 
 
+def _error_line_problems(case: Case, argv: list[str], folder: Path, cmd: str,
+                         lines: list[str]) -> list[str]:
+    """An exit 2 must leave exactly one line ``stbs CMD: error: ...`` on stderr, naming
+    one of the case's input files."""
+    if len(lines) != 1 or not lines[0].startswith(f"stbs {cmd}: error: "):
+        return [f"exit 2 without exactly one line 'stbs {cmd}: error: ...' on "
+                f"stderr: {' | '.join(lines)[-600:]!r}"]
+    names = set(case.files) | {os.path.basename(a) for a in argv[1:] if not a.startswith("-")}
+    if case.outputs_named:
+        names.add(str(folder))
+    if not any(n and n in lines[0] for n in names):
+        return [f"an error naming none of the input files: {lines[0][:400]!r}"]
+    return []
+
+
 class FuzzEnv:
     """The session's folder, canary, seeds and worker (see the module docs)."""
 
@@ -285,6 +300,16 @@ class FuzzEnv:
 
     def _judge(self, case: Case, argv: list[str], folder: Path, out: Outcome,
                inputs: dict[str, str], outside: dict, timeout: float) -> list[str]:
+        """What went wrong in a case's run (see the module docs); empty when nothing."""
+        return (self._exit_problems(case, argv, folder, out, timeout)
+                + self._leak_problems(case, folder, out, inputs)
+                + self._file_problems(case, folder, out, inputs, outside))
+
+    @staticmethod
+    def _exit_problems(case: Case, argv: list[str], folder: Path, out: Outcome,
+                       timeout: float) -> list[str]:
+        """How the command ended: exit 0 with good outputs, or exit 2 with one error line
+        naming an input; never a timeout, signal, traceback or numeric warning."""
         p: list[str] = []
         cmd = argv[0]
         err = out.stderr
@@ -296,16 +321,7 @@ class FuzzEnv:
         elif "Traceback (most recent call last)" in err or out.status == 1:
             p.append("a traceback: " + " | ".join(lines[-3:])[-600:])
         elif out.status == 2:
-            if len(lines) != 1 or not lines[0].startswith(f"stbs {cmd}: error: "):
-                p.append(f"exit 2 without exactly one line 'stbs {cmd}: error: ...' on "
-                         f"stderr: {' | '.join(lines)[-600:]!r}")
-            else:
-                names = set(case.files) | {os.path.basename(a) for a in argv[1:]
-                                           if not a.startswith("-")}
-                if case.outputs_named:
-                    names.add(str(folder))
-                if not any(n and n in lines[0] for n in names):
-                    p.append(f"an error naming none of the input files: {lines[0][:400]!r}")
+            p += _error_line_problems(case, argv, folder, cmd, lines)
         elif out.status != 0:
             p.append(f"exit status {out.status}: {' | '.join(lines[-3:])[-600:]}")
         if out.status == 0 and out.check:
@@ -313,8 +329,13 @@ class FuzzEnv:
         numeric = [s for s in lines if "RuntimeWarning:" in s]
         if numeric:            # an overflow or a NaN met on the way: a check missing
             p.append(f"a numeric warning: {numeric[0][:300]}")
-        # the canary and other secrets
-        for stream, text in (("stdout", out.stdout), ("stderr", err)):
+        return p
+
+    def _leak_problems(self, case: Case, folder: Path, out: Outcome,
+                       inputs: dict[str, str]) -> list[str]:
+        """The canary's or /etc/passwd's bytes on stdout, stderr or in an output file."""
+        p: list[str] = []
+        for stream, text in (("stdout", out.stdout), ("stderr", out.stderr)):
             if self.marker in text or _PASSWD.decode() in text:
                 p.append(f"the canary's or /etc/passwd's bytes on {stream}")
         for name in sorted(os.listdir(folder)):
@@ -323,8 +344,13 @@ class FuzzEnv:
                 continue
             if self._leaks(f):
                 p.append(f"the canary's or /etc/passwd's bytes in the output {name}")
-        p += self._files_touched(case, folder, out.opened)
-        # inputs and everything outside the case folder unchanged
+        return p
+
+    def _file_problems(self, case: Case, folder: Path, out: Outcome, inputs: dict[str, str],
+                       outside: dict) -> list[str]:
+        """Files opened where they must not be, inputs changed, files outside the case
+        folder created or changed, temporary files left (which are removed)."""
+        p = self._files_touched(case, folder, out.opened)
         changed = [n for n, h in inputs.items()
                    if not (folder / n).is_file() or _digest(folder / n) != h]
         if changed:
