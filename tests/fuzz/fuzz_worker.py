@@ -79,69 +79,103 @@ def _audit(opened: list):
     return hook
 
 
-def _check_output(kind: str, argv: list[str]) -> str | None:
-    """What is wrong with the outputs of a run that exited 0 (None: they look right)."""
+def _finite(name: str, x) -> str | None:
+    """What is wrong with ``x`` if it holds NaN or infinity (None: nothing)."""
     import numpy as np
 
-    def finite(name, x):
-        x = np.asarray(x)
-        if x.size and not np.isfinite(x).all():
-            return f"{name} holds NaN or infinity"
-        return None
-
-    out = argv[argv.index("-o") + 1] if "-o" in argv else None
-    if kind in ("rig", "rig-e"):
-        from stbs.io import read_rig
-
-        rig = read_rig(out)
-        if rig.E is None and kind == "rig-e":
-            return f"{out}: no endpoint weights"
-        for name, x in (("V", rig.V), ("W", rig.W), ("E", rig.E)):
-            if x is not None and (bad := finite(f"{out} {name}", x)):
-                return bad
-        if rig.E is not None and not (np.min(rig.E) >= 0 and np.max(rig.E) <= 1):
-            return f"{out}: endpoint weights outside [0, 1]"
-        if out.lower().endswith((".gltf", ".glb")):
-            from stbs.io.gltf import GltfFile
-
-            # the copy is self-contained: its buffer is its own; an image it could not
-            # embed (not PNG or JPEG) keeps a relative name, never one leading out
-            doc = GltfFile(out).doc
-            bad = [b.get("uri") for b in doc.get("buffers", [])
-                   if not str(b.get("uri", "data:")).startswith("data:")]
-            bad += [u for m in doc.get("images", []) if isinstance(m, dict)
-                    and isinstance(u := m.get("uri"), str) and not u.startswith("data:")
-                    and (":" in u or u.startswith("/") or ".." in u or "\\" in u
-                         or "%" in u)]
-            if bad:
-                return f"{out}: a buffer or image naming a file ({bad[0][:80]!r})"
-        return None
-    if kind == "deformed":
-        z = np.load(out)
-        U = z["U"] if hasattr(z, "files") else z
-        if U.ndim != 2 or U.shape[0] == 0:
-            return f"{out}: U of shape {U.shape}"
-        return finite(f"{out} U", U)
-    if kind == "frames":
-        if out.lower().endswith(".npz"):
-            z = np.load(out)
-            if z["U"].ndim != 3 or z["U"].shape[0] == 0:
-                return f"{out}: U of shape {z['U'].shape}"
-            return finite(f"{out} U", z["U"]) or finite(f"{out} times", z["times"])
-        if out.lower().endswith(".json"):
-            return None
-        from stbs.io import read_gltf
-
-        rig, _ = read_gltf(out)
-        return finite(f"{out} V", rig.V)
-    if kind == "manifest":
-        found = [f for f in os.listdir(".") if f.endswith(".npz")]
-        for name in found:
-            z = np.load(name)
-            if bad := finite(f"{name} U", z["U"]):
-                return bad
-        return None
+    x = np.asarray(x)
+    if x.size and not np.isfinite(x).all():
+        return f"{name} holds NaN or infinity"
     return None
+
+
+def _check_gltf_copy(out: str) -> str | None:
+    """A glTF copy is self-contained: its buffer is its own; an image it could not embed
+    (not PNG or JPEG) keeps a relative name, never one leading out."""
+    from stbs.io.gltf import GltfFile
+
+    doc = GltfFile(out).doc
+    bad = [b.get("uri") for b in doc.get("buffers", [])
+           if not str(b.get("uri", "data:")).startswith("data:")]
+    bad += [u for m in doc.get("images", []) if isinstance(m, dict)
+            and isinstance(u := m.get("uri"), str) and not u.startswith("data:")
+            and (":" in u or u.startswith("/") or ".." in u or "\\" in u
+                 or "%" in u)]
+    if bad:
+        return f"{out}: a buffer or image naming a file ({bad[0][:80]!r})"
+    return None
+
+
+def _check_rig(kind: str, out: str) -> str | None:
+    """A rig written (``rig-e``: with endpoint weights) reads back finite, its endpoint
+    weights in [0, 1]."""
+    import numpy as np
+
+    from stbs.io import read_rig
+
+    rig = read_rig(out)
+    if rig.E is None and kind == "rig-e":
+        return f"{out}: no endpoint weights"
+    for name, x in (("V", rig.V), ("W", rig.W), ("E", rig.E)):
+        if x is not None and (bad := _finite(f"{out} {name}", x)):
+            return bad
+    if rig.E is not None and not (np.min(rig.E) >= 0 and np.max(rig.E) <= 1):
+        return f"{out}: endpoint weights outside [0, 1]"
+    if out.lower().endswith((".gltf", ".glb")):
+        return _check_gltf_copy(out)
+    return None
+
+
+def _check_deformed(kind: str, out: str) -> str | None:
+    """One deformed mesh: U (n, 3), not empty, finite."""
+    import numpy as np
+
+    z = np.load(out)
+    U = z["U"] if hasattr(z, "files") else z
+    if U.ndim != 2 or U.shape[0] == 0:
+        return f"{out}: U of shape {U.shape}"
+    return _finite(f"{out} U", U)
+
+
+def _check_frames(kind: str, out: str) -> str | None:
+    """Frames: an .npz of U (frames, n, 3) and times, finite; a glTF that reads back
+    finite (a .json is not looked into)."""
+    import numpy as np
+
+    if out.lower().endswith(".npz"):
+        z = np.load(out)
+        if z["U"].ndim != 3 or z["U"].shape[0] == 0:
+            return f"{out}: U of shape {z['U'].shape}"
+        return _finite(f"{out} U", z["U"]) or _finite(f"{out} times", z["times"])
+    if out.lower().endswith(".json"):
+        return None
+    from stbs.io import read_gltf
+
+    rig, _ = read_gltf(out)
+    return _finite(f"{out} V", rig.V)
+
+
+def _check_manifest(kind: str, out: str | None) -> str | None:
+    """Every .npz a manifest's jobs wrote (in the case folder) is finite."""
+    import numpy as np
+
+    found = [f for f in os.listdir(".") if f.endswith(".npz")]
+    for name in found:
+        z = np.load(name)
+        if bad := _finite(f"{name} U", z["U"]):
+            return bad
+    return None
+
+
+_CHECKS = {"rig": _check_rig, "rig-e": _check_rig, "deformed": _check_deformed,
+           "frames": _check_frames, "manifest": _check_manifest}
+
+
+def _check_output(kind: str, argv: list[str]) -> str | None:
+    """What is wrong with the outputs of a run that exited 0 (None: they look right)."""
+    out = argv[argv.index("-o") + 1] if "-o" in argv else None
+    check = _CHECKS.get(kind)
+    return None if check is None else check(kind, out)
 
 
 def _case(main, req: dict, base: int) -> dict:
