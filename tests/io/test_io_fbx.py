@@ -282,6 +282,130 @@ def _box_geometry(uid, name):
             + "\t\tGeometryVersion: 124\n\t}\n")
 
 
+_P = 'P: "{}", "{}", "{}", "{}",{}\n'
+
+
+def _fbx_header() -> list[str]:
+    """The header and global settings: y up, z front, x right, metres, 30 fps."""
+    o = ["; FBX 7.4.0 project file\n", "FBXHeaderExtension:  {\n\tFBXHeaderVersion: 1003\n"
+         "\tFBXVersion: 7400\n\tCreator: \"stbs tests\"\n}\n",
+         "GlobalSettings:  {\n\tVersion: 1000\n\tProperties70:  {\n"]
+    for k, v in (("UpAxis", 1), ("UpAxisSign", 1), ("FrontAxis", 2), ("FrontAxisSign", 1),
+                 ("CoordAxis", 0), ("CoordAxisSign", 1)):
+        o.append("\t\t" + _P.format(k, "int", "Integer", "", v))
+    o.append("\t\t" + _P.format("UnitScaleFactor", "double", "Number", "", 1))
+    o.append("\t\t" + _P.format("TimeMode", "enum", "", "", 6) + "\t}\n}\n")   # 6: 30 fps
+    return o
+
+
+def _fbx_models(V, poly, parts: bool) -> list[str]:
+    """The bar's geometry and model, the three joints' models and attributes, and with
+    ``parts`` the Cap, its Socket and the Crate."""
+    o = ["Objects:  {\n\tGeometry: 1000, \"Geometry::Bar\", \"Mesh\" {\n"
+         + _arr("Vertices", V.ravel()) + _arr("PolygonVertexIndex", poly, "{:d}")
+         + "\t\tGeometryVersion: 124\n\t}\n"
+         "\tModel: 2000, \"Model::Bar\", \"Mesh\" {\n\t\tVersion: 232\n\t}\n"]
+    for uid, name, kind, y in ((3000, "Bone1", "LimbNode", 0.0), (3500, "Mid", "Null", 0.5),
+                               (4000, "Bone2", "Null", 0.5)):
+        o.append(f"\tModel: {uid}, \"Model::{name}\", \"{kind}\" {{\n\t\tVersion: 232\n"
+                 "\t\tProperties70:  {\n\t\t\t"
+                 + _P.format("Lcl Translation", "Lcl Translation", "", "A", f"0,{y},0")
+                 + "\t\t}\n\t}\n"
+                 f"\tNodeAttribute: {uid + 1}, \"NodeAttribute::{name}\", \"{kind}\" {{\n"
+                 + ("\t\tTypeFlags: \"Skeleton\"\n" if kind == "LimbNode" else "") + "\t}\n")
+    if parts:
+        o.append(_box_geometry(1100, "Cap") + _box_geometry(1200, "Crate"))
+        for uid, name, kind, props in (
+                (3600, "Socket", "Null", (("Lcl Translation", "0.1,0.3,0"),
+                                          ("Lcl Rotation", "20,0,0"))),
+                (2100, "Cap", "Mesh", (("Lcl Translation", "0.2,0.1,0"),
+                                       ("Lcl Rotation", "0,30,45"),
+                                       ("Lcl Scaling", "-1,1.5,0.8"))),
+                (2200, "Crate", "Mesh", (("Lcl Translation", "3,0,0"),))):
+            o.append(f"\tModel: {uid}, \"Model::{name}\", \"{kind}\" {{\n\t\tVersion: 232\n"
+                     "\t\tProperties70:  {\n"
+                     + "".join("\t\t\t" + _P.format(k, k, "", "A", v) for k, v in props)
+                     + "\t\t}\n\t}\n")
+        o.append("\tNodeAttribute: 3601, \"NodeAttribute::Socket\", \"Null\" {\n\t}\n")
+    return o
+
+
+def _fbx_skin(w1, shift: float) -> list[str]:
+    """The skin deformer, Bone1's and Bone2's clusters (Bone2's bind moved ``shift``
+    along x) and the bind pose."""
+    o = ["\tDeformer: 5000, \"Deformer::Skin\", \"Skin\" {\n\t\tVersion: 101\n\t}\n"]
+    for uid, name, w, y, dx in ((5001, "Bone1", w1, 0.0, 0.0),
+                                (5002, "Bone2", 1 - w1, 1.0, shift)):
+        idx = np.flatnonzero(w > 0)
+        mesh_at = np.eye(4)
+        mesh_at[0, 3] = dx
+        # "Transform" as files keep it: the mesh's bind matrix in the bone's frame
+        o.append(f"\tDeformer: {uid}, \"SubDeformer::{name}\", \"Cluster\" {{\n"
+                 "\t\tVersion: 100\n" + _arr("Indexes", idx, "{:d}")
+                 + _arr("Weights", w[idx]) + _mat("Transform", _T(-y) @ mesh_at)
+                 + _mat("TransformLink", _T(y)) + "\t}\n")
+    o.append("\tPose: 6000, \"Pose::BIND_POSES\", \"BindPose\" {\n\t\tType: \"BindPose\"\n"
+             "\t\tVersion: 100\n\t\tNbPoseNodes: 4\n")
+    for uid, y in ((2000, 0.0), (3000, 0.0), (3500, 0.5), (4000, 1.0)):
+        o.append(f"\t\tPoseNode:  {{\n\t\t\tNode: {uid}\n" + _mat("Matrix", _T(y), 3)
+                 + "\t\t}\n")
+    o.append("\t}\n")
+    return o
+
+
+def _fbx_curve(uid: int, values) -> str:
+    """An animation curve of two keys, at 0 and 1 s."""
+    return (f"\t\t}}\n\t}}\n\tAnimationCurve: {uid}, \"AnimCurve::\", \"\" {{\n"
+            "\t\tDefault: 0\n\t\tKeyVer: 4009\n" + _arr("KeyTime", [0, SEC], "{:d}")
+            + _arr("KeyValueFloat", values) + _arr("KeyAttrFlags", [24836], "{:d}")
+            + _arr("KeyAttrDataFloat", [0, 0, 0, 0], "{:d}")
+            + _arr("KeyAttrRefCount", [2], "{:d}") + "\t}\n")
+
+
+def _fbx_animation(nod: bool) -> list[str]:
+    """Stack "Bend": Bone2 turned about z from 0 to 90 degrees (``nod``: the Socket
+    about x from 20 to -40 too)."""
+    o = ["\tAnimationStack: 7000, \"AnimStack::Bend\", \"\" {\n\t\tProperties70:  {\n"]
+    for k, v in (("LocalStart", 0), ("LocalStop", SEC), ("ReferenceStart", 0),
+                 ("ReferenceStop", SEC)):
+        o.append("\t\t\t" + _P.format(k, "KTime", "Time", "", v))
+    o.append("\t\t}\n\t}\n\tAnimationLayer: 7001, \"AnimLayer::BaseLayer\", \"\" {\n\t}\n"
+             "\tAnimationCurveNode: 7002, \"AnimCurveNode::R\", \"\" {\n"
+             "\t\tProperties70:  {\n")
+    for k in "XYZ":
+        o.append("\t\t\t" + _P.format(f"d|{k}", "Number", "", "A", 0))
+    o.append(_fbx_curve(7003, [0, 90]))
+    if nod:
+        o.append("\tAnimationCurveNode: 7004, \"AnimCurveNode::R\", \"\" {\n"
+                 "\t\tProperties70:  {\n")
+        for k, v in (("X", 20), ("Y", 0), ("Z", 0)):
+            o.append("\t\t\t" + _P.format(f"d|{k}", "Number", "", "A", v))
+        o.append(_fbx_curve(7005, [20, -40]))
+    return o
+
+
+def _fbx_connections(*, skin: bool, anim: bool, parts: bool, nod: bool) -> list[str]:
+    """The Connections section: the node tree, the skin's links and the animation's."""
+    o = ["}\nConnections:  {\n"]
+    con = [("OO", 2000, 0), ("OO", 1000, 2000), ("OO", 3000, 0), ("OO", 3001, 3000),
+           ("OO", 3500, 3000), ("OO", 3501, 3500), ("OO", 4000, 3500), ("OO", 4001, 4000)]
+    if parts:
+        con += [("OO", 3600, 4000), ("OO", 3601, 3600), ("OO", 2100, 3600),
+                ("OO", 1100, 2100), ("OO", 2200, 0), ("OO", 1200, 2200)]
+    if skin:
+        con += [("OO", 5000, 1000), ("OO", 5001, 5000), ("OO", 3000, 5001),
+                ("OO", 5002, 5000), ("OO", 4000, 5002)]
+    o += [f"\tC: \"{k}\",{a},{b}\n" for k, a, b in con]
+    if anim:
+        o += ["\tC: \"OO\",7001,7000\n", "\tC: \"OO\",7002,7001\n",
+              "\tC: \"OP\",7002,4000, \"Lcl Rotation\"\n", "\tC: \"OP\",7003,7002, \"d|Z\"\n"]
+        if nod:
+            o += ["\tC: \"OO\",7004,7001\n", "\tC: \"OP\",7004,3600, \"Lcl Rotation\"\n",
+                  "\tC: \"OP\",7005,7004, \"d|X\"\n"]
+    o.append("}\n")
+    return o
+
+
 def ascii_fbx(*, skin=True, anim=True, shift=0.0, parts=False, nod=False):
     """An ASCII FBX 7.4 of a bar (y from 0 to 2, 20 vertices, 18 quads) on Bone1
     (LimbNode at the origin) -> Mid (a Null at y = 0.5, in no cluster) -> Bone2 (a Null
@@ -299,101 +423,12 @@ def ascii_fbx(*, skin=True, anim=True, shift=0.0, parts=False, nod=False):
     quads += [(3, 2, 1, 0), (16, 17, 18, 19)]
     poly = [v for q in quads for v in (*q[:3], -q[3] - 1)]    # FBX ends a polygon with ~v
     w1 = np.array([1.0] * 8 + [0.5] * 4 + [0.0] * 8)
-    P = 'P: "{}", "{}", "{}", "{}",{}\n'
-    o = ["; FBX 7.4.0 project file\n", "FBXHeaderExtension:  {\n\tFBXHeaderVersion: 1003\n"
-         "\tFBXVersion: 7400\n\tCreator: \"stbs tests\"\n}\n",
-         "GlobalSettings:  {\n\tVersion: 1000\n\tProperties70:  {\n"]
-    for k, v in (("UpAxis", 1), ("UpAxisSign", 1), ("FrontAxis", 2), ("FrontAxisSign", 1),
-                 ("CoordAxis", 0), ("CoordAxisSign", 1)):
-        o.append("\t\t" + P.format(k, "int", "Integer", "", v))
-    o.append("\t\t" + P.format("UnitScaleFactor", "double", "Number", "", 1))
-    o.append("\t\t" + P.format("TimeMode", "enum", "", "", 6) + "\t}\n}\n")   # 6: 30 fps
-    o.append("Objects:  {\n\tGeometry: 1000, \"Geometry::Bar\", \"Mesh\" {\n"
-             + _arr("Vertices", V.ravel()) + _arr("PolygonVertexIndex", poly, "{:d}")
-             + "\t\tGeometryVersion: 124\n\t}\n"
-             "\tModel: 2000, \"Model::Bar\", \"Mesh\" {\n\t\tVersion: 232\n\t}\n")
-    for uid, name, kind, y in ((3000, "Bone1", "LimbNode", 0.0), (3500, "Mid", "Null", 0.5),
-                               (4000, "Bone2", "Null", 0.5)):
-        o.append(f"\tModel: {uid}, \"Model::{name}\", \"{kind}\" {{\n\t\tVersion: 232\n"
-                 "\t\tProperties70:  {\n\t\t\t"
-                 + P.format("Lcl Translation", "Lcl Translation", "", "A", f"0,{y},0")
-                 + "\t\t}\n\t}\n"
-                 f"\tNodeAttribute: {uid + 1}, \"NodeAttribute::{name}\", \"{kind}\" {{\n"
-                 + ("\t\tTypeFlags: \"Skeleton\"\n" if kind == "LimbNode" else "") + "\t}\n")
-    if parts:
-        o.append(_box_geometry(1100, "Cap") + _box_geometry(1200, "Crate"))
-        for uid, name, kind, props in (
-                (3600, "Socket", "Null", (("Lcl Translation", "0.1,0.3,0"),
-                                          ("Lcl Rotation", "20,0,0"))),
-                (2100, "Cap", "Mesh", (("Lcl Translation", "0.2,0.1,0"),
-                                       ("Lcl Rotation", "0,30,45"),
-                                       ("Lcl Scaling", "-1,1.5,0.8"))),
-                (2200, "Crate", "Mesh", (("Lcl Translation", "3,0,0"),))):
-            o.append(f"\tModel: {uid}, \"Model::{name}\", \"{kind}\" {{\n\t\tVersion: 232\n"
-                     "\t\tProperties70:  {\n"
-                     + "".join("\t\t\t" + P.format(k, k, "", "A", v) for k, v in props)
-                     + "\t\t}\n\t}\n")
-        o.append("\tNodeAttribute: 3601, \"NodeAttribute::Socket\", \"Null\" {\n\t}\n")
+    o = _fbx_header() + _fbx_models(V, poly, parts)
     if skin:
-        o.append("\tDeformer: 5000, \"Deformer::Skin\", \"Skin\" {\n\t\tVersion: 101\n\t}\n")
-        for uid, name, w, y, dx in ((5001, "Bone1", w1, 0.0, 0.0),
-                                    (5002, "Bone2", 1 - w1, 1.0, shift)):
-            idx = np.flatnonzero(w > 0)
-            mesh_at = np.eye(4)
-            mesh_at[0, 3] = dx
-            # "Transform" as files keep it: the mesh's bind matrix in the bone's frame
-            o.append(f"\tDeformer: {uid}, \"SubDeformer::{name}\", \"Cluster\" {{\n"
-                     "\t\tVersion: 100\n" + _arr("Indexes", idx, "{:d}")
-                     + _arr("Weights", w[idx]) + _mat("Transform", _T(-y) @ mesh_at)
-                     + _mat("TransformLink", _T(y)) + "\t}\n")
-        o.append("\tPose: 6000, \"Pose::BIND_POSES\", \"BindPose\" {\n\t\tType: \"BindPose\"\n"
-                 "\t\tVersion: 100\n\t\tNbPoseNodes: 4\n")
-        for uid, y in ((2000, 0.0), (3000, 0.0), (3500, 0.5), (4000, 1.0)):
-            o.append(f"\t\tPoseNode:  {{\n\t\t\tNode: {uid}\n" + _mat("Matrix", _T(y), 3)
-                     + "\t\t}\n")
-        o.append("\t}\n")
+        o += _fbx_skin(w1, shift)
     if anim:
-        o.append("\tAnimationStack: 7000, \"AnimStack::Bend\", \"\" {\n\t\tProperties70:  {\n")
-        for k, v in (("LocalStart", 0), ("LocalStop", SEC), ("ReferenceStart", 0),
-                     ("ReferenceStop", SEC)):
-            o.append("\t\t\t" + P.format(k, "KTime", "Time", "", v))
-        o.append("\t\t}\n\t}\n\tAnimationLayer: 7001, \"AnimLayer::BaseLayer\", \"\" {\n\t}\n"
-                 "\tAnimationCurveNode: 7002, \"AnimCurveNode::R\", \"\" {\n"
-                 "\t\tProperties70:  {\n")
-        for k in "XYZ":
-            o.append("\t\t\t" + P.format(f"d|{k}", "Number", "", "A", 0))
-        o.append("\t\t}\n\t}\n\tAnimationCurve: 7003, \"AnimCurve::\", \"\" {\n"
-                 "\t\tDefault: 0\n\t\tKeyVer: 4009\n" + _arr("KeyTime", [0, SEC], "{:d}")
-                 + _arr("KeyValueFloat", [0, 90]) + _arr("KeyAttrFlags", [24836], "{:d}")
-                 + _arr("KeyAttrDataFloat", [0, 0, 0, 0], "{:d}")
-                 + _arr("KeyAttrRefCount", [2], "{:d}") + "\t}\n")
-        if nod:
-            o.append("\tAnimationCurveNode: 7004, \"AnimCurveNode::R\", \"\" {\n"
-                     "\t\tProperties70:  {\n")
-            for k, v in (("X", 20), ("Y", 0), ("Z", 0)):
-                o.append("\t\t\t" + P.format(f"d|{k}", "Number", "", "A", v))
-            o.append("\t\t}\n\t}\n\tAnimationCurve: 7005, \"AnimCurve::\", \"\" {\n"
-                     "\t\tDefault: 0\n\t\tKeyVer: 4009\n" + _arr("KeyTime", [0, SEC], "{:d}")
-                     + _arr("KeyValueFloat", [20, -40]) + _arr("KeyAttrFlags", [24836], "{:d}")
-                     + _arr("KeyAttrDataFloat", [0, 0, 0, 0], "{:d}")
-                     + _arr("KeyAttrRefCount", [2], "{:d}") + "\t}\n")
-    o.append("}\nConnections:  {\n")
-    con = [("OO", 2000, 0), ("OO", 1000, 2000), ("OO", 3000, 0), ("OO", 3001, 3000),
-           ("OO", 3500, 3000), ("OO", 3501, 3500), ("OO", 4000, 3500), ("OO", 4001, 4000)]
-    if parts:
-        con += [("OO", 3600, 4000), ("OO", 3601, 3600), ("OO", 2100, 3600),
-                ("OO", 1100, 2100), ("OO", 2200, 0), ("OO", 1200, 2200)]
-    if skin:
-        con += [("OO", 5000, 1000), ("OO", 5001, 5000), ("OO", 3000, 5001),
-                ("OO", 5002, 5000), ("OO", 4000, 5002)]
-    o += [f"\tC: \"{k}\",{a},{b}\n" for k, a, b in con]
-    if anim:
-        o += ["\tC: \"OO\",7001,7000\n", "\tC: \"OO\",7002,7001\n",
-              "\tC: \"OP\",7002,4000, \"Lcl Rotation\"\n", "\tC: \"OP\",7003,7002, \"d|Z\"\n"]
-        if nod:
-            o += ["\tC: \"OO\",7004,7001\n", "\tC: \"OP\",7004,3600, \"Lcl Rotation\"\n",
-                  "\tC: \"OP\",7005,7004, \"d|X\"\n"]
-    o.append("}\n")
+        o += _fbx_animation(nod)
+    o += _fbx_connections(skin=skin, anim=anim, parts=parts, nod=nod)
     return "".join(o), V, w1
 
 
