@@ -259,7 +259,8 @@ def _hang_frames(sk: Skeleton, R, theta, idx) -> np.ndarray:
     if sk.dim == 3:
         t = sk.hang[idx]
         ang = (1 - t) * theta[..., p, 0] + t * theta[..., p, 1]
-        F = F @ tf.axis_angle_to_matrix(sk.axes[p], ang)
+        if np.any(ang):         # untwisted: K_p is the identity, F_p = R_p exactly
+            F = F @ tf.axis_angle_to_matrix(sk.axes[p], ang)
     return F
 
 

@@ -328,6 +328,16 @@ def test_seek_makes_the_clips_pose_current_and_answers_its_binary_bones(srv):
         # the pose file object of the current pose follows, made when asked for
         back = stbs.io.read_pose(request(srv, "GET", "/api/pose", token=True).json(), sk)
         assert np.abs(back.origins - ref.origins).max() < 1e-9
+    # asked for JSON: the pose object and the bones in one answer
+    r = request(srv, "POST", f"/api/clip/{cid}/seek", body=json.dumps({"time": 0.75}),
+                token=True, headers={"Content-Type": "application/json",
+                                     "Accept": "application/json"})
+    assert r.status == 200 and r.headers["content-type"].startswith("application/json")
+    got, ref = r.json(), clip.pose(0.75)
+    assert got["time"] == 0.75
+    assert np.abs(np.array(got["bones"]["origins"]) - ref.origins).max() < 1e-12
+    assert np.abs(np.array(got["bones"]["rotations"]) - ref.rotations).max() < 1e-12
+    assert np.abs(stbs.io.read_pose(got["pose"], sk).origins - ref.origins).max() < 1e-9
     before = srv.pose
     for body, status, words in (({"time": "x"}, 400, "finite number of seconds"),
                                 ({}, 400, 'missing "time"'),

@@ -39,8 +39,9 @@ export async function loadArray(desc) {
 }
 
 /** Options for a POST of a JSON body. */
-export function postJSON(body) {
-  return { method: "POST", headers: { "Content-Type": "application/json" }, body: JSON.stringify(body) };
+export function postJSON(body, headers = {}) {
+  return { method: "POST", headers: Object.assign({ "Content-Type": "application/json" }, headers),
+           body: JSON.stringify(body) };
 }
 
 // ------------------------------------------------------------------ pose bones, binary
@@ -79,9 +80,10 @@ export async function poseBones() {
 }
 
 /** POST /api/clip/ID/seek: the clip's pose at `time` (seconds) becomes the current pose;
- * resolves to its bones {rotations, origins, stretch, twist}. */
+ * resolves to {pose (the pose object), bones {rotations, origins, stretch, twist}, time},
+ * one request (the JSON answer: a pose's rows are a few numbers a bone). */
 export async function seekClip(id, time) {
-  return bonesReply(await api(`/api/clip/${id}/seek`, postJSON({ time })));
+  return apiJSON(`/api/clip/${id}/seek`, postJSON({ time }, { Accept: "application/json" }));
 }
 
 /** POST /api/pose/bones: the page's world transforms {R, A, S, T} (ik.js Bones.world())

@@ -315,8 +315,8 @@ export class Timeline {
    */
   show(t) {
     const run = async () => {
-      const bones = await this.withClip((id) => this.seekClip(id, t));
-      this.store.setPose(bones, await this.poses.get());     // and the pose object of it
+      const reply = await this.withClip((id) => this.seekClip(id, t));
+      this.store.setPose(reply.bones, reply.pose);     // the bones and the pose object
       this.time = t;
       this.updateBar();
       return { time: t };

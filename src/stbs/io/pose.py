@@ -528,15 +528,16 @@ def _fk_dict(pose: Pose, scale: float) -> tuple[dict | None, str]:
     sig, th = pose.stretch, pose.twist
     obj: dict[str, Any] = {}
     rotate = {}
-    for i in range(b):
-        if np.abs(L[i] - np.eye(d)).max() <= 1e-15:
-            continue
+    turned = np.flatnonzero(np.abs(L - np.eye(d)).reshape(b, -1).max(axis=1, initial=0)
+                            > 1e-15)
+    if d == 3 and turned.size:      # every turned bone's axis and angle at once
+        axes, angles = tf.quat_to_axis_angle(tf.matrix_to_quat(L[turned]))
+    for k, i in enumerate(turned):
         if d == 2:
             rotate[sk.names[i]] = {"angle": _num(tf.angle_2d(L[i]) * scale)}
         else:
-            axis, angle = tf.quat_to_axis_angle(tf.matrix_to_quat(L[i]))
-            rotate[sk.names[i]] = {"axis": [_num(a) for a in axis],
-                                   "angle": _num(angle * scale)}
+            rotate[sk.names[i]] = {"axis": [_num(a) for a in axes[k]],
+                                   "angle": _num(angles[k] * scale)}
     if rotate:
         obj["rotate"] = rotate
     stretch = {sk.names[i]: _num(sig[i]) for i in range(b) if sig[i] != 1.0}

@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import hmac
 import json
+import socket
 import socketserver
 import sys
 import threading
@@ -306,8 +307,23 @@ class Handler(BaseHTTPRequestHandler):
                                "(max_body)")
         return self._read(n)
 
+    def _ack_now(self) -> None:
+        """Acknowledge what has arrived at once (Linux TCP_QUICKACK). A browser sends a
+        POST's headers and its body in two packets, the body only once the headers are
+        acknowledged (Nagle's algorithm); with the delayed ACK that costs about 40 ms a
+        request. Elsewhere a no-op."""
+        quickack = getattr(socket, "TCP_QUICKACK", None)
+        if quickack is None:
+            return
+        try:
+            self.connection.setsockopt(socket.IPPROTO_TCP, quickack, 1)
+        except (OSError, AttributeError):
+            pass
+
     def _read(self, n: int) -> bytes:
         chunks, got = [], 0
+        if n:
+            self._ack_now()
         try:
             while got < n:      # read1: what has arrived, so a short body counts as such
                 chunk = self.rfile.read1(min(n - got, 1 << 20))

@@ -254,10 +254,14 @@ def _clip_frames(req: Request, app, cid: str) -> Reply:
 
 
 def _seek(req: Request, app, cid: str) -> Reply:
-    """``{"time": t}``: the clip's pose at t becomes the current pose; its binary bones."""
+    """``{"time": t}``: the clip's pose at t becomes the current pose; its binary bones,
+    or (``Accept: application/json``) ``{"pose", "bones", "time"}`` in one answer."""
     clip = app.state.clip(cid)
     pose, t = clips.clip_pose_at(clip, req.json())
     app.state.set_pose(pose)
+    if "application/json" in (req.headers.get("Accept") or "").lower():
+        return json_reply({"pose": app.state.pose_object(), "bones": bones.pose_json(pose),
+                           "time": t})
     return _bones_reply(req, pose, binary=True, Time=repr(t))
 
 
