@@ -3,17 +3,20 @@
 // the right half in a second one (only the material's uMethod uniform changes).
 
 import * as THREE from "three";
-import { METHODS } from "./skin.js";
 
 export class Compare {
-  /** ctx: {view, ...}; the view's methodIndex is the left half's method. */
+  /**
+   * ctx: {view, ...}; the view's methodIndex is the left half's method, its methods
+   * the server's names in the shader's order.
+   */
   constructor(ctx) {
     this.view = ctx.view;
+    this.methods = ctx.view.methods;
     this.index = -1;                       // the right half's method; -1: one view
     this.size = new THREE.Vector2();
     const sel = document.getElementById("compare");
     if (sel) {
-      for (const m of METHODS) {
+      for (const m of this.methods) {
         const o = document.createElement("option");
         o.value = o.textContent = m;
         sel.appendChild(o);
@@ -27,22 +30,22 @@ export class Compare {
   get active() { return this.index >= 0; }
 
   /** The second method's name, or null when the view is not split. */
-  method() { return this.active ? METHODS[this.index] : null; }
+  method() { return this.active ? this.methods[this.index] : null; }
 
   /** Split the view with `name` on the right, or back to one view with null. */
   set(name) {
     if (name === null || name === undefined || name === "") {
       this.index = -1;
     } else {
-      const i = METHODS.indexOf(name);
+      const i = this.methods.indexOf(name);
       if (i < 0) {
-        throw new Error(`compare: the second method must be one of ${METHODS.join(", ")} or null, ` +
+        throw new Error(`compare: the second method must be one of ${this.methods.join(", ")} or null, ` +
                         `got ${JSON.stringify(name)}`);
       }
       this.index = i;
     }
     const sel = document.getElementById("compare");
-    if (sel) sel.value = this.active ? METHODS[this.index] : "";
+    if (sel) sel.value = this.active ? this.methods[this.index] : "";
     this.showLabels();
     this.view.resize();             // the camera's aspect follows the viewport's
     return this.method();
@@ -54,8 +57,8 @@ export class Compare {
     el.hidden = !this.active;
     if (!this.active) return;
     const [l, r] = el.querySelectorAll("span");
-    if (l) l.textContent = METHODS[this.view.methodIndex];
-    if (r) r.textContent = METHODS[this.index];
+    if (l) l.textContent = this.methods[this.view.methodIndex];
+    if (r) r.textContent = this.methods[this.index];
   }
 
   /**

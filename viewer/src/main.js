@@ -17,7 +17,7 @@ import { Compare } from "./compare.js";
 import { Gizmo } from "./gizmo.js";
 import { PoseFiles } from "./posefiles.js";
 import { Timeline } from "./timeline.js";
-import { MESH_FRAGMENT, MESH_VERTEX, METHODS, TEXELS_PER_BONE } from "./skin.js";
+import { MESH_FRAGMENT, MESH_VERTEX, TEXELS_PER_BONE, checkMethods } from "./skin.js";
 import { api, apiJSON, loadArray, poseBones, seekClip, setWorldPose } from "./api.js";
 import { Events } from "./events.js";
 import { History } from "./history.js";
@@ -99,6 +99,8 @@ class Viewer {
 
   async load() {
     const info = await apiJSON("/api/rig");
+    // the method names come from the server (typed once, in the library), in the shader's order
+    this.methods = checkMethods(info.methods);
     this.summary = info;
     this.dim = info.dim;
     const want = ["V", "F", "C", "BE", "I4", "W4", "E4", "W", "E"];
@@ -126,7 +128,7 @@ class Viewer {
                         summary: info });
     if (arrays.W && arrays.E) this.store.setWeights(toFloat32(arrays.W), toFloat32(arrays.E));
     this.boneData = new Float32Array(4 * TEXELS_PER_BONE * this.b);
-    this.methodIndex = Math.max(0, METHODS.indexOf(info.method));
+    this.methodIndex = Math.max(0, this.methods.indexOf(info.method));
     this.buildScene();
     this.events.on("pose", ({ arrays: a }) => this.upload(a));
     this.events.on("select", () => { this.showSelected(); this.render(); });
@@ -434,12 +436,12 @@ class Viewer {
   buildUI() {
     const sel = document.getElementById("method");
     if (!sel) return;
-    for (const m of METHODS) {
+    for (const m of this.methods) {
       const o = document.createElement("option");
       o.value = o.textContent = m;
       sel.appendChild(o);
     }
-    sel.value = METHODS[this.methodIndex];
+    sel.value = this.methods[this.methodIndex];
     sel.addEventListener("change", () => this.setMethod(sel.value));
     const mirror = document.getElementById("mirror");
     if (mirror) {
@@ -452,20 +454,20 @@ class Viewer {
   }
 
   info() {
-    return { vertices: this.n, bones: this.b, dim: this.dim, methods: METHODS.slice(),
-             method: METHODS[this.methodIndex], names: this.summary.names,
+    return { vertices: this.n, bones: this.b, dim: this.dim, methods: this.methods.slice(),
+             method: this.methods[this.methodIndex], names: this.summary.names,
              shaders: Object.assign({}, this.shaders) };
   }
 
   setMethod(name) {
-    const i = METHODS.indexOf(name);
-    if (i < 0) throw new Error(`method must be one of ${METHODS.join(", ")}, got ${JSON.stringify(name)}`);
+    const i = this.methods.indexOf(name);
+    if (i < 0) throw new Error(`method must be one of ${this.methods.join(", ")}, got ${JSON.stringify(name)}`);
     this.methodIndex = i;
     this.material.uniforms.uMethod.value = i;
     const sel = document.getElementById("method");
     if (sel) sel.value = name;
     this.render();
-    return METHODS[i];
+    return this.methods[i];
   }
 
   /** The scripting API's setPose: after any edit in flight, then frame the posed mesh. */
@@ -585,7 +587,7 @@ class Viewer {
 function makeView(v) {
   const view = {};
   for (const k of ["renderer", "scene", "camera", "controls", "mesh", "material", "feedback",
-                   "diag", "boneData", "methodIndex"]) {
+                   "diag", "boneData", "methodIndex", "methods"]) {
     Object.defineProperty(view, k, { get: () => v[k], enumerable: true });
   }
   for (const f of ["render", "viewRect", "viewRectAt", "skinned", "toScreen", "posedJoints",

@@ -11,8 +11,29 @@
 /** Texels per bone in the pose texture (one row per bone), see pose.js. */
 export const TEXELS_PER_BONE = 8;
 
-/** Method names in the order of the shader's uMethod values. */
-export const METHODS = ["lbs", "dqs", "stbs-lbs", "stbs-dqs"];
+/**
+ * The skinning methods in the order of the shader's uMethod values (its branches
+ * below test these indices). The page takes the names from the server (`methods`
+ * of /api/rig, the library's stbs.methods.SKINNING_METHODS) and only checks them
+ * against this order with checkMethods.
+ */
+export const SHADER_METHODS = Object.freeze(["lbs", "dqs", "stbs-lbs", "stbs-dqs"]);
+
+/**
+ * The server's skinning methods, checked to be the shader's order: returns a copy
+ * of `methods`, or throws naming what the shader knows and what arrived.
+ */
+export function checkMethods(methods) {
+  const ok = Array.isArray(methods) && methods.length === SHADER_METHODS.length &&
+             methods.every((m, i) => m === SHADER_METHODS[i]);
+  if (!ok) {
+    throw new Error(`the rig's skinning methods ("methods" of /api/rig) must be ` +
+                    `${JSON.stringify(SHADER_METHODS)} in this order, the order this page's ` +
+                    `shader knows, got ${JSON.stringify(methods)}: the page and the server ` +
+                    `are from different versions of stbs`);
+  }
+  return methods.slice();
+}
 
 export const SKIN_GLSL = /* glsl */ `
 // ---- stbs skinning -------------------------------------------------------
