@@ -63,6 +63,7 @@ import subprocess
 import sys
 import tempfile
 import warnings
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -351,6 +352,40 @@ def _skeletons(meta: dict) -> list[list[int]]:
     return sorted((sorted(g[1]) for g in groups), key=lambda g: g[0])
 
 
+def _pick_mesh(p: Path, meta: dict, mesh, skinned: list[int], names: list[str]) -> int:
+    """The skinned mesh ``mesh`` names (its index among the skinned meshes, or its or
+    its node's name)."""
+    recs = meta["meshes"]
+    if isinstance(mesh, (int, np.integer)) and not isinstance(mesh, bool):
+        if not 0 <= mesh < len(skinned):
+            raise ValueError(f"mesh={mesh}: {p} has {len(skinned)} skinned meshes "
+                             f"(0..{len(skinned) - 1}): {', '.join(map(repr, names))}")
+        return skinned[int(mesh)]
+    if isinstance(mesh, str):
+        node_names = {m: [meta["nodes"][k]["name"] for k in recs[m]["nodes"]]
+                      for m in skinned}
+        hits = [m for m in skinned if recs[m]["name"] == mesh or mesh in node_names[m]]
+        if not hits:
+            raise ValueError(f"mesh={mesh!r}: {p} has no skinned mesh of that name; it "
+                             f"has {', '.join(map(repr, names))}")
+        return hits[0]
+    raise TypeError(f"mesh must be an int or a str, got {type(mesh).__name__}")
+
+
+def _pick_skin(p: Path, meta: dict, skin) -> int:
+    """The index of the skin deformer ``skin`` names (its index or name)."""
+    if isinstance(skin, (int, np.integer)) and not isinstance(skin, bool):
+        if not 0 <= skin < len(meta["skins"]):
+            raise ValueError(f"skin={skin}: {p} has {len(meta['skins'])} skin deformers")
+        return int(skin)
+    if isinstance(skin, str):
+        if skin not in meta["skins"]:
+            raise ValueError(f"skin={skin!r}: {p} has no skin deformer of that name; it "
+                             f"has {', '.join(map(repr, meta['skins']))}")
+        return meta["skins"].index(skin)
+    raise TypeError(f"skin must be an int or a str, got {type(skin).__name__}")
+
+
 def _pick(p: Path, meta: dict, skin, mesh) -> list[int]:
     """The meshes to read: those of the skeleton ``skin``/``mesh`` picks (see read_fbx)."""
     recs = meta["meshes"]
@@ -362,35 +397,9 @@ def _pick(p: Path, meta: dict, skin, mesh) -> list[int]:
                           found)
     skinned = sorted(m for g in groups for m in g)
     names = [recs[m]["name"] for m in skinned]
-    chosen = None
-    if mesh is not None:
-        if isinstance(mesh, (int, np.integer)) and not isinstance(mesh, bool):
-            if not 0 <= mesh < len(skinned):
-                raise ValueError(f"mesh={mesh}: {p} has {len(skinned)} skinned meshes "
-                                 f"(0..{len(skinned) - 1}): {', '.join(map(repr, names))}")
-            chosen = skinned[int(mesh)]
-        elif isinstance(mesh, str):
-            node_names = {m: [meta["nodes"][k]["name"] for k in recs[m]["nodes"]]
-                          for m in skinned}
-            hits = [m for m in skinned if recs[m]["name"] == mesh or mesh in node_names[m]]
-            if not hits:
-                raise ValueError(f"mesh={mesh!r}: {p} has no skinned mesh of that name; it "
-                                 f"has {', '.join(map(repr, names))}")
-            chosen = hits[0]
-        else:
-            raise TypeError(f"mesh must be an int or a str, got {type(mesh).__name__}")
+    chosen = None if mesh is None else _pick_mesh(p, meta, mesh, skinned, names)
     if skin is not None:
-        if isinstance(skin, (int, np.integer)) and not isinstance(skin, bool):
-            if not 0 <= skin < len(meta["skins"]):
-                raise ValueError(f"skin={skin}: {p} has {len(meta['skins'])} skin deformers")
-            k = int(skin)
-        elif isinstance(skin, str):
-            if skin not in meta["skins"]:
-                raise ValueError(f"skin={skin!r}: {p} has no skin deformer of that name; it "
-                                 f"has {', '.join(map(repr, meta['skins']))}")
-            k = meta["skins"].index(skin)
-        else:
-            raise TypeError(f"skin must be an int or a str, got {type(skin).__name__}")
+        k = _pick_skin(p, meta, skin)
         users = [m for m in skinned if recs[m]["skins"][:1] == [k]]
         if not users:
             raise ValueError(f"skin={skin!r}: that skin deformer deforms no mesh of {p}")
@@ -469,18 +478,12 @@ def _hung(meta: dict, col: dict[int, int]) -> list[tuple[int, int, int, int]]:
     return out
 
 
-def _build(p: Path, meta: dict, arr: dict, skin, mesh, anims: bool, rigid: bool = True
-           ) -> tuple[Rig, dict[str, Clip]]:
-    picked = _pick(p, meta, skin, mesh)
+def _joints(meta: dict, picked: list[int]
+            ) -> tuple[list[int], dict[int, int], np.ndarray, list[str]]:
+    """The joint nodes (the picked meshes' clusters' bones and the chain nodes between
+    them, in node order), node -> joint, each joint's parent joint and name."""
     nodes = meta["nodes"]
     recs = meta["meshes"]
-    # cluster records with their arrays, per mesh
-    base, c = [], 0
-    for rec in recs:
-        base.append(c)
-        c += len(rec["clusters"])
-
-    # ---- joints: the clusters' bones and the chain nodes between them
     bones = sorted({cl["bone"] for m in picked for cl in recs[m]["clusters"]
                     if cl["bone"] >= 0})
     joint_set = set(bones)
@@ -500,85 +503,150 @@ def _build(p: Path, meta: dict, arr: dict, skin, mesh, anims: bool, rigid: bool 
             k = nodes[k]["parent"]
         parent[i] = col.get(k, -1)
     names = _unique([nodes[k]["name"] or f"node{k}" for k in joints])
+    return joints, col, parent, names
 
-    # ---- geometry, weights, bind matrices
-    Vs, Fs, Ws, ranges = [], [], [], []
-    bind: dict[int, np.ndarray] = {}         # joint column -> bind matrix
-    bound_by: dict[int, str] = {}
-    moved: list[str] = []
-    off = 0
+
+@dataclass
+class _Stack:
+    """The meshes read so far, in the order they are stacked into the rig's ``V``, ``F``
+    (indices into the stack) and ``W``."""
+
+    Vs: list = field(default_factory=list)
+    Fs: list = field(default_factory=list)
+    Ws: list = field(default_factory=list)
+    off: int = 0
+
+    def add(self, V: np.ndarray, F: np.ndarray, W: np.ndarray) -> int:
+        """Stack one mesh's vertices, triangles and weights; its first row."""
+        start = self.off
+        self.Vs.append(V)
+        self.Fs.append(F + start)
+        self.Ws.append(W)
+        self.off += len(V)
+        return start
+
+
+def _cluster_weights(p: Path, arr: dict, rec: dict, first: int, col: dict[int, int], n: int
+                     ) -> tuple[np.ndarray, list, list[float]]:
+    """A skinned mesh's (n, joints) weights from its clusters (``first``: the index of
+    its first cluster's arrays), checked to weigh every vertex; each cluster's (joint,
+    TransformLink, geometry-to-bone) and the weight it carries."""
+    W = np.zeros((n, len(col)))
+    links, mass = [], []
+    for k, cl in enumerate(rec["clusters"]):
+        if cl["bone"] < 0:
+            continue
+        j = first + k
+        v, w = arr[f"cl{j}_v"], arr[f"cl{j}_w"]
+        if v.size and (v.min() < 0 or v.max() >= n):
+            raise FormatError(p, f"cluster {cl['name']!r}: vertex indices in 0..{n - 1}",
+                              f"{int(v.min())}..{int(v.max())}")
+        if v.size and not np.isfinite(w).all():
+            raise FormatError(p, f"cluster {cl['name']!r}: finite weights", "NaN or inf")
+        np.add.at(W[:, col[cl["bone"]]], v, w)
+        links.append((col[cl["bone"]], arr[f"cl{j}_link"], arr[f"cl{j}_g2b"]))
+        mass.append(float(np.abs(w).sum()))
+    tot = W.sum(axis=1)
+    if np.any(tot <= 0):
+        k = int(np.flatnonzero(tot <= 0)[0])
+        raise FormatError(p, f"mesh {rec['name']!r}: skin weights on every vertex",
+                          f"{int((tot <= 0).sum())} of its {n} vertices without weight "
+                          f"(vertex {k} first)")
+    return W, links, mass
+
+
+def _mesh_bind(links: list, mass: list[float]) -> tuple[np.ndarray, float]:
+    """The mesh's bind matrix: TransformLink @ geometry_to_bone of each cluster; the one
+    that clusters carrying the most weight agree on; and the tolerance of agreeing."""
+    Xs = [L @ g for _, L, g in links]
+    # files store these in single precision: agreement to 1e-5 of their largest entry
+    scale = max(max(float(np.abs(M).max()) for M in Xs),
+                max(float(np.abs(L).max()) for _, L, _ in links))
+    tol = 1e-5 * max(scale, 1.0)
+    score = [sum(w for X2, w in zip(Xs, mass, strict=True) if _agree(X, X2, tol))
+             for X in Xs]
+    return Xs[int(np.argmax(score))], tol
+
+
+@dataclass
+class _Binds:
+    """The joints' bind matrices as the meshes give them: joint -> bind, the mesh that
+    gave it, and the joints whose clusters bind a mesh elsewhere than the others do."""
+
+    p: Path
+    names: list[str]
+    bind: dict = field(default_factory=dict)
+    bound_by: dict = field(default_factory=dict)
+    moved: list = field(default_factory=list)
+
+    def take(self, mesh: str, X: np.ndarray, links: list, tol: float) -> None:
+        """The binds of the joints of ``mesh``, bound at ``X``; a joint bound otherwise
+        by an earlier mesh keeps that one, with a warning."""
+        for i, L, g in links:
+            B = X @ np.linalg.inv(g)          # exact: B^-1 X = geometry_to_bone
+            if not _agree(B, L, tol):
+                self.moved.append(self.names[i])
+            if i not in self.bind:
+                self.bind[i] = B
+                self.bound_by[i] = mesh
+            elif not _agree(self.bind[i], B, tol):
+                # stacklevel: as _build's 3, two calls deeper (_skinned_meshes, this)
+                warnings.warn(f"{self.p}: joint {self.names[i]!r} is bound differently by "
+                              f"the meshes {self.bound_by[i]!r} and {mesh!r}; the rig "
+                              f"follows {self.bound_by[i]!r}, so {mesh!r} skins near, not "
+                              "exactly as, the file", UserWarning, stacklevel=5)
+
+
+def _skinned_meshes(p: Path, meta: dict, arr: dict, picked: list[int], col: dict[int, int],
+                    binds: _Binds, geo: _Stack) -> list[dict]:
+    """Stack the picked meshes, placed at their bind, into ``geo`` (their binds into
+    ``binds``); where each came from."""
+    nodes = meta["nodes"]
+    recs = meta["meshes"]
+    # cluster records with their arrays, per mesh
+    base, c = [], 0
+    for rec in recs:
+        base.append(c)
+        c += len(rec["clusters"])
+    ranges = []
     for m in picked:
         rec = recs[m]
         V0 = arr[f"mesh{m}_V"]
         n = len(V0)
         F = _fans(p, rec["name"], arr[f"mesh{m}_I"], arr[f"mesh{m}_faces"], n)
-        W = np.zeros((n, len(joints)))
-        links, mass = [], []
-        for k, cl in enumerate(rec["clusters"]):
-            if cl["bone"] < 0:
-                continue
-            j = base[m] + k
-            v, w = arr[f"cl{j}_v"], arr[f"cl{j}_w"]
-            if v.size and (v.min() < 0 or v.max() >= n):
-                raise FormatError(p, f"cluster {cl['name']!r}: vertex indices in 0..{n - 1}",
-                                  f"{int(v.min())}..{int(v.max())}")
-            if v.size and not np.isfinite(w).all():
-                raise FormatError(p, f"cluster {cl['name']!r}: finite weights", "NaN or inf")
-            np.add.at(W[:, col[cl["bone"]]], v, w)
-            links.append((col[cl["bone"]], arr[f"cl{j}_link"], arr[f"cl{j}_g2b"]))
-            mass.append(float(np.abs(w).sum()))
-        tot = W.sum(axis=1)
-        if np.any(tot <= 0):
-            k = int(np.flatnonzero(tot <= 0)[0])
-            raise FormatError(p, f"mesh {rec['name']!r}: skin weights on every vertex",
-                              f"{int((tot <= 0).sum())} of its {n} vertices without weight "
-                              f"(vertex {k} first)")
-        # The mesh's bind matrix: TransformLink @ geometry_to_bone of each cluster; the one
-        # that clusters carrying the most weight agree on.
-        Xs = [L @ g for _, L, g in links]
-        # files store these in single precision: agreement to 1e-5 of their largest entry
-        scale = max(max(float(np.abs(M).max()) for M in Xs),
-                    max(float(np.abs(L).max()) for _, L, _ in links))
-        tol = 1e-5 * max(scale, 1.0)
-        score = [sum(w for X2, w in zip(Xs, mass, strict=True) if _agree(X, X2, tol))
-                 for X in Xs]
-        X = Xs[int(np.argmax(score))]
-        for i, L, g in links:
-            B = X @ np.linalg.inv(g)          # exact: B^-1 X = geometry_to_bone
-            if not _agree(B, L, tol):
-                moved.append(names[i])
-            if i not in bind:
-                bind[i] = B
-                bound_by[i] = rec["name"]
-            elif not _agree(bind[i], B, tol):
-                warnings.warn(f"{p}: joint {names[i]!r} is bound differently by the meshes "
-                              f"{bound_by[i]!r} and {rec['name']!r}; the rig follows "
-                              f"{bound_by[i]!r}, so {rec['name']!r} skins near, not "
-                              "exactly as, the file", UserWarning, stacklevel=3)
-        V = V0 @ X[:3, :3].T + X[:3, 3]
-        Vs.append(V)
-        Fs.append(F + off)
-        Ws.append(W)
+        W, links, mass = _cluster_weights(p, arr, rec, base[m], col, n)
+        X, tol = _mesh_bind(links, mass)
+        binds.take(rec["name"], X, links, tol)
+        start = geo.add(V0 @ X[:3, :3].T + X[:3, 3], F, W)
         ranges.append({"name": rec["name"], "node": nodes[rec["nodes"][0]]["name"]
-                       if rec["nodes"] else None, "start": off, "stop": off + n,
+                       if rec["nodes"] else None, "start": start, "stop": start + n,
                        "skinning": _METHODS.get(rec["method"], str(rec["method"]))})
-        off += n
-    if moved:
-        warnings.warn(f"{p}: the clusters of {', '.join(map(repr, sorted(set(moved))))} "
-                      "bind the mesh elsewhere than the others do; their joints' bind "
-                      "matrices are taken so that the rig skins as the file does",
-                      UserWarning, stacklevel=3)
+    return ranges
+
+
+def _rest_binds(meta: dict, arr: dict, joints: list[int], bind: dict) -> np.ndarray:
+    """(b, 4, 4) binds: the meshes' where they give one, else (a chain node) the bind
+    pose, else the node's rest."""
     pose = {k: arr["pose_world"][i] for i, k in enumerate(meta["pose"])}
     for i, node in enumerate(joints):
-        if i not in bind:                   # a chain node: the bind pose, else its rest
+        if i not in bind:
             bind[i] = pose.get(node, arr["node_world"][node])
-    B = np.array([bind[i] for i in range(len(joints))])
+    return np.array([bind[i] for i in range(len(joints))])
 
-    # ---- meshes hung on a joint without a skin: drawn at G_j(t) G_j^-1 X (X: the mesh
-    # node's geometry-to-world at rest, G_j the joint's world at rest), so placed at
-    # B_j G_j^-1 X they move exactly with the joint's skinning matrix G_j(t) B_j^-1
+
+def _rigid_parts(p: Path, meta: dict, arr: dict, B: np.ndarray, col: dict[int, int],
+                 names: list[str], geo: _Stack) -> tuple[list[dict], list[tuple[int, int]]]:
+    """Stack the meshes hung on a joint without a skin into ``geo``, each weighted 1 on
+    its joint; where each came from, and (node, joint) of each.
+
+    Such a mesh is drawn at ``G_j(t) G_j^-1 X`` (``X``: the mesh node's
+    geometry-to-world at rest, ``G_j`` the joint's world at rest), so placed at
+    ``B_j G_j^-1 X`` it moves exactly with the joint's skinning matrix
+    ``G_j(t) B_j^-1``."""
+    nodes = meta["nodes"]
+    recs = meta["meshes"]
     parts, hung = [], []
-    for m, i, node, joint in (_hung(meta, col) if rigid and mesh is None else []):
+    for m, i, node, joint in _hung(meta, col):
         rec = recs[m]
         V0 = arr[f"mesh{m}_V"]
         n = len(V0)
@@ -586,16 +654,20 @@ def _build(p: Path, meta: dict, arr: dict, skin, mesh, anims: bool, rigid: bool 
         X = B[col[joint]] @ np.linalg.inv(arr["node_world"][joint]) @ arr[f"mesh{m}_g2w"][i]
         if np.linalg.det(X[:3, :3]) < 0:    # mirrored: drawn with the winding reversed
             F = F[:, [0, 2, 1]]
-        W = np.zeros((n, len(joints)))
+        W = np.zeros((n, len(col)))
         W[:, col[joint]] = 1.0
-        Vs.append(V0 @ X[:3, :3].T + X[:3, 3])
-        Fs.append(F + off)
-        Ws.append(W)
+        start = geo.add(V0 @ X[:3, :3].T + X[:3, 3], F, W)
         parts.append({"name": rec["name"], "node": nodes[node]["name"],
-                      "joint": names[col[joint]], "start": off, "stop": off + n})
+                      "joint": names[col[joint]], "start": start, "stop": start + n})
         hung.append((node, col[joint]))
-        off += n
-    info = {"file": p.name, "meshes": ranges, "rigid": parts, "joints": names,
+    return parts, hung
+
+
+def _file_info(p: Path, meta: dict, ranges: list[dict], parts: list[dict],
+               names: list[str]) -> dict:
+    """``rig.meta["fbx"]``: the file, where each mesh came from, the joints' names and
+    what the file says of itself."""
+    return {"file": p.name, "meshes": ranges, "rigid": parts, "joints": names,
             "version": meta["version"], "ascii": meta["ascii"], "creator": meta["creator"],
             "unit_meters": meta["unit_meters"],
             "fps": meta["fps"] if np.isfinite(meta["fps"]) else None,
@@ -603,13 +675,33 @@ def _build(p: Path, meta: dict, arr: dict, skin, mesh, anims: bool, rigid: bool 
                              (_AXES[a] if 0 <= a < 6 else "?" for a in meta["axes"]),
                              strict=True)),
             "stacks": [s["name"] for s in meta["stacks"]]}
-    rig = rig_from_joints(np.vstack(Vs), np.vstack(Fs), np.vstack(Ws), B, parent, names,
-                          meta={"fbx": info})
 
-    # ---- animation stacks
+
+def _warn_parts_apart(p: Path, meta: dict, arr: dict, s: int, name: str, G: np.ndarray,
+                      joints: list[int], names: list[str], hung: list[tuple[int, int]],
+                      where: dict[int, int]) -> None:
+    """Warn, once per stack, about the rigid parts whose own node (or one between it
+    and its joint) moves: they follow their joint only."""
+    nodes = meta["nodes"]
+    apart = []
+    for node, i in hung:
+        want = G[:, i] @ (np.linalg.inv(arr["node_world"][joints[i]])
+                          @ arr["node_world"][node])
+        got = arr[f"stack{s}_G"][:, where[node]]
+        if np.abs(got - want).max() > 1e-5 * max(1.0, float(np.abs(want).max())):
+            apart.append(f"{nodes[node]['name']!r} (on {names[i]!r})")
+    if apart:
+        # stacklevel: as _build's 3, two calls deeper (_clips, this)
+        warnings.warn(f"{p}: animation stack {name!r} moves the rigid parts "
+                      f"{', '.join(dict.fromkeys(apart))} apart from their joints; the "
+                      "rig moves them with their joints only", UserWarning, stacklevel=5)
+
+
+def _clips(p: Path, meta: dict, arr: dict, rig: Rig, joints: list[int], names: list[str],
+           B: np.ndarray, hung: list[tuple[int, int]]) -> dict[str, Clip]:
+    """One clip per animation stack, named after it (``stack_<s>`` unnamed, a ``#``
+    added to a name taken)."""
     clips: dict[str, Clip] = {}
-    if not anims:
-        return rig, clips
     where = {node: k for k, node in enumerate(meta["evaluated"])}
     Binv = np.linalg.inv(B)
     fps = meta["fps"] if np.isfinite(meta["fps"]) and meta["fps"] > 0 else None
@@ -623,20 +715,32 @@ def _build(p: Path, meta: dict, arr: dict, skin, mesh, anims: bool, rigid: bool 
         clips[name] = clip_from_joint_matrices(
             rig.skeleton, times, M, fps=fps,
             source=f"{p.name}: animation stack {name!r}")
-        # a part whose own node (or one between it and its joint) moves follows its
-        # joint only: said once per stack
-        apart = []
-        for node, i in hung:
-            want = G[:, i] @ (np.linalg.inv(arr["node_world"][joints[i]])
-                              @ arr["node_world"][node])
-            got = arr[f"stack{s}_G"][:, where[node]]
-            if np.abs(got - want).max() > 1e-5 * max(1.0, float(np.abs(want).max())):
-                apart.append(f"{nodes[node]['name']!r} (on {names[i]!r})")
-        if apart:
-            warnings.warn(f"{p}: animation stack {name!r} moves the rigid parts "
-                          f"{', '.join(dict.fromkeys(apart))} apart from their joints; the "
-                          "rig moves them with their joints only", UserWarning, stacklevel=3)
-    return rig, clips
+        _warn_parts_apart(p, meta, arr, s, name, G, joints, names, hung, where)
+    return clips
+
+
+def _build(p: Path, meta: dict, arr: dict, skin, mesh, anims: bool, rigid: bool = True
+           ) -> tuple[Rig, dict[str, Clip]]:
+    """The rig and clips of the scene the child read (``meta``, ``arr``)."""
+    picked = _pick(p, meta, skin, mesh)
+    joints, col, parent, names = _joints(meta, picked)
+    geo = _Stack()
+    binds = _Binds(p, names)
+    ranges = _skinned_meshes(p, meta, arr, picked, col, binds, geo)
+    if binds.moved:
+        warnings.warn(f"{p}: the clusters of {', '.join(map(repr, sorted(set(binds.moved))))} "
+                      "bind the mesh elsewhere than the others do; their joints' bind "
+                      "matrices are taken so that the rig skins as the file does",
+                      UserWarning, stacklevel=3)
+    B = _rest_binds(meta, arr, joints, binds.bind)
+    parts, hung = (_rigid_parts(p, meta, arr, B, col, names, geo) if rigid and mesh is None
+                   else ([], []))
+    info = _file_info(p, meta, ranges, parts, names)
+    rig = rig_from_joints(np.vstack(geo.Vs), np.vstack(geo.Fs), np.vstack(geo.Ws), B, parent,
+                          names, meta={"fbx": info})
+    if not anims:
+        return rig, {}
+    return rig, _clips(p, meta, arr, rig, joints, names, B, hung)
 
 
 def _read(path, *, skin=None, mesh=None, rigid: bool = True, anims: bool = True
