@@ -33,20 +33,26 @@ class Lines:
         self.budget = budget
         self.count = 0
         self.exceeded = False
+        # the tracers are closures over plain locals: a bound method and attributes for
+        # every line would make counting several times slower
+        limit = budget if budget is not None else sys.maxsize
+        n = [0]
 
-    def _call(self, frame, event, arg):
-        code = frame.f_code
-        if code.co_name == "<module>" or not code.co_filename.startswith(SRC):
-            return None
-        return self._line
+        def line(frame, event, arg):
+            if event == "line":
+                n[0] += 1
+                if n[0] > limit:
+                    self.exceeded = True
+                    raise TooMuchWork(f"more than {budget} lines of stbs code ran")
+            return line
 
-    def _line(self, frame, event, arg):
-        if event == "line":
-            self.count += 1
-            if self.budget is not None and self.count > self.budget:
-                self.exceeded = True
-                raise TooMuchWork(f"more than {self.budget} lines of stbs code ran")
-        return self._line
+        def call(frame, event, arg):
+            code = frame.f_code
+            if code.co_name == "<module>" or not code.co_filename.startswith(SRC):
+                return None
+            return line
+
+        self._call, self._n = call, n
 
     def __enter__(self) -> Lines:
         self._before = sys.gettrace()
@@ -57,6 +63,7 @@ class Lines:
     def __exit__(self, *exc) -> None:
         sys.settrace(self._before)
         threading.settrace(None)
+        self.count = self._n[0]
 
 
 def lines(call, *args, **kwargs) -> int:
