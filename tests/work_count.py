@@ -32,7 +32,6 @@ class Lines:
     def __init__(self, budget: int | None = None):
         self.budget = budget
         self.count = 0
-        self.exceeded = False
         # the tracers are closures over plain locals: a bound method and attributes for
         # every line would make counting several times slower
         limit = budget if budget is not None else sys.maxsize
@@ -42,7 +41,6 @@ class Lines:
             if event == "line":
                 n[0] += 1
                 if n[0] > limit:
-                    self.exceeded = True
                     raise TooMuchWork(f"more than {budget} lines of stbs code ran")
             return line
 
@@ -65,9 +63,3 @@ class Lines:
         threading.settrace(None)
         self.count = self._n[0]
 
-
-def lines(call, *args, **kwargs) -> int:
-    """The package lines that ``call(*args, **kwargs)`` ran."""
-    with Lines() as w:
-        call(*args, **kwargs)
-    return w.count

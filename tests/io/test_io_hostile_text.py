@@ -2,9 +2,9 @@
 
 Each one is refused with one ValueError (a FormatError for a BVH) of one line naming the
 file, what was expected and what was found, after work linear in the file at most and
-without a large allocation;
-never a RecursionError, OverflowError, MemoryError, KeyError, IndexError or a NumPy
-warning. The command line prints that line and exits 2, writing nothing."""
+without a large allocation; never a RecursionError, OverflowError, MemoryError, KeyError,
+IndexError or a NumPy warning. The command line prints that line and exits 2, writing
+nothing."""
 
 from __future__ import annotations
 
