@@ -94,18 +94,16 @@ def test_the_table_gives_fps_and_the_ratio_to_three_lbs():
     line = next(ln for ln in text.splitlines() if ln.strip().startswith("1,000  stbs-dqs"))
     assert line.split() == ["1,000", "stbs-dqs", "3.00", "333.3", "1.50", "7"]
     assert "canvas 640x400" in text and "1.50x three-lbs" in text
-    assert "target" not in text                      # the check is at 100k vertices only
     rows = [{"vertices": 100_000, "method": m, "ms_per_frame": t}
             for m, t in (("stbs-dqs", 16.0), ("three-lbs", 10.0))]
     meta = {"canvas": [640, 400], "latency": {"100000": {
         "dab_ms": 12.5, "dabs": 40, "dab_vertices": 9000, "seek_ms": 30.25, "seeks": 40}}}
     text = bv.format_table(rows, meta)
-    assert "1.60x three-lbs's frame time (target: within 1.5x: missed)" in text
+    assert "1.60x three-lbs's frame time\n" in text + "\n"
     tail = text.split("latency: a paint dab", 1)[1]
     line = next(ln for ln in tail.splitlines() if ln.strip().startswith("100,000  "))
     assert line.split() == ["100,000", "12.50", "40", "9,000", "30.25", "40"]
-    rows[0]["ms_per_frame"] = 15.0
-    assert "(target: within 1.5x: met)" in bv.format_table(rows, meta)
+    assert "target" not in text
 
 
 def test_the_seek_clip_has_1000_keys_that_read_as_a_clip():
@@ -226,9 +224,7 @@ def test_the_three_lbs_peer_is_stbs_lbs_for_a_rotation_only_pose(bench):
         page = bench.open(srv.url, "stbsViewer")
         page.evaluate("p => stbsViewer.setPose(p)", bv.bench_pose(stretch=False, twist=False))
         page.evaluate("stbsViewer.setMethod('lbs')")
-        # the canvas alone: the page's panels are not the mesh
-        page.evaluate("""() => { for (const el of document.body.children)
-                                   if (el.id !== "view") el.style.visibility = "hidden"; }""")
+        bv.canvas_only(page, (640, 400))    # the canvas alone, filling the page as the peer's
         cam = page.evaluate("stbsViewer.camera()")
         ours = _mask(page.screenshot())
         page.close()

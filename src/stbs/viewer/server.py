@@ -24,6 +24,7 @@ import numpy as np
 
 from ..pose import Pose
 from ..rig import Rig
+from . import saves
 from .handler import MAX_HANDLERS, REQUEST_QUEUE, TOKEN_HEADER, Handler, HTTPServer
 from .jobs import JobRunner, endpoint_column, read_endpoint_request
 from .payload import RigPayload
@@ -154,6 +155,16 @@ class ViewerServer:
     def pose(self) -> Pose:
         """The current pose."""
         return self.state.pose
+
+    def set_pose(self, pose: Pose | dict) -> dict:
+        """Make ``pose`` (a :class:`stbs.Pose` of the rig's skeleton, or a pose file's
+        object, as ``POST /api/pose`` takes) the current pose; its pose object back."""
+        if not isinstance(pose, Pose):
+            pose = saves.read_request_pose(pose, self.state)
+        elif pose.skeleton != self.rig.skeleton:
+            raise ValueError("pose must be of the rig's skeleton")
+        self.state.set_pose(pose)
+        return self.state.pose_object()
 
     @property
     def clips(self):
