@@ -18,8 +18,8 @@ import scipy.sparse as sp
 from ._arrays import index_array, real_array
 from .skeleton import Skeleton
 
-__all__ = ["choice", "real_array", "index_array", "vertices", "skeleton", "bone_weights",
-           "endpoint_weights", "dtype_choice", "PARTITION_TOL", "NEGATIVE_TOL"]
+__all__ = ["choice", "real_array", "index_array", "bone_list", "vertices", "skeleton",
+           "bone_weights", "endpoint_weights", "dtype_choice", "PARTITION_TOL", "NEGATIVE_TOL"]
 
 #: Tolerance on row sums of W before rows are renormalised (with a warning).
 PARTITION_TOL = 1e-6
@@ -136,3 +136,13 @@ def dtype_choice(dtype: Any) -> np.dtype:
     if dt not in (np.dtype(np.float32), np.dtype(np.float64)):
         raise ValueError(f"dtype must be float32 or float64, got {dt}")
     return dt
+
+
+def bone_list(bones, b: int) -> list[int]:
+    """``bones`` (None: all ``b``) as a sorted list of distinct bone indices, checked."""
+    if bones is None:
+        return list(range(b))
+    todo = np.unique(index_array("bones", bones, ndim=1)).tolist()
+    if todo and (todo[0] < 0 or todo[-1] >= b):
+        raise ValueError(f"bones must hold bone indices in 0..{b - 1}, got {list(bones)!r}")
+    return todo

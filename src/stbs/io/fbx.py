@@ -73,6 +73,7 @@ from ..clip import MAX_SAMPLES, Clip
 from ..rig.joints import clip_from_joint_matrices, rig_from_joints
 from ..rig.model import Rig
 from ._parse import input_path, suffix
+from ._stack import MeshStack
 from .errors import FormatError
 
 __all__ = ["read_fbx", "FBX_EXTENSIONS"]
@@ -506,26 +507,6 @@ def _joints(meta: dict, picked: list[int]
     return joints, col, parent, names
 
 
-@dataclass
-class _Stack:
-    """The meshes read so far, in the order they are stacked into the rig's ``V``, ``F``
-    (indices into the stack) and ``W``."""
-
-    Vs: list = field(default_factory=list)
-    Fs: list = field(default_factory=list)
-    Ws: list = field(default_factory=list)
-    off: int = 0
-
-    def add(self, V: np.ndarray, F: np.ndarray, W: np.ndarray) -> int:
-        """Stack one mesh's vertices, triangles and weights; its first row."""
-        start = self.off
-        self.Vs.append(V)
-        self.Fs.append(F + start)
-        self.Ws.append(W)
-        self.off += len(V)
-        return start
-
-
 def _cluster_weights(p: Path, arr: dict, rec: dict, first: int, col: dict[int, int], n: int
                      ) -> tuple[np.ndarray, list, list[float]]:
     """A skinned mesh's (n, joints) weights from its clusters (``first``: the index of
@@ -598,7 +579,7 @@ class _Binds:
 
 
 def _skinned_meshes(p: Path, meta: dict, arr: dict, picked: list[int], col: dict[int, int],
-                    binds: _Binds, geo: _Stack) -> list[dict]:
+                    binds: _Binds, geo: MeshStack) -> list[dict]:
     """Stack the picked meshes, placed at their bind, into ``geo`` (their binds into
     ``binds``); where each came from."""
     nodes = meta["nodes"]
@@ -635,7 +616,7 @@ def _rest_binds(meta: dict, arr: dict, joints: list[int], bind: dict) -> np.ndar
 
 
 def _rigid_parts(p: Path, meta: dict, arr: dict, B: np.ndarray, col: dict[int, int],
-                 names: list[str], geo: _Stack) -> tuple[list[dict], list[tuple[int, int]]]:
+                 names: list[str], geo: MeshStack) -> tuple[list[dict], list[tuple[int, int]]]:
     """Stack the meshes hung on a joint without a skin into ``geo``, each weighted 1 on
     its joint; where each came from, and (node, joint) of each.
 
@@ -724,7 +705,7 @@ def _build(p: Path, meta: dict, arr: dict, skin, mesh, anims: bool, rigid: bool 
     """The rig and clips of the scene the child read (``meta``, ``arr``)."""
     picked = _pick(p, meta, skin, mesh)
     joints, col, parent, names = _joints(meta, picked)
-    geo = _Stack()
+    geo = MeshStack()
     binds = _Binds(p, names)
     ranges = _skinned_meshes(p, meta, arr, picked, col, binds, geo)
     if binds.moved:

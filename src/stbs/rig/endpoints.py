@@ -111,7 +111,7 @@ def rig_endpoint_weights(rig: Rig, method: str, *, bones=None, W=None,
         raise ValueError(f"options must be among {', '.join(OPTIONS)}, got {unknown[0]!r}")
     sk, n, b = rig.skeleton, rig.V.shape[0], rig.skeleton.n_bones
     W = rig.W if W is None else _weights("W", W, n, b)
-    todo = _bones(bones, b)
+    todo = _checks.bone_list(bones, b)
     stage = f"endpoint weights ({method})"
     say = progress or (lambda s, done, total: None)
     say(stage, 0, 0)
@@ -134,15 +134,6 @@ def rig_endpoint_weights(rig: Rig, method: str, *, bones=None, W=None,
 
 def _dense(X) -> np.ndarray:
     return X.toarray() if hasattr(X, "toarray") else np.asarray(X, dtype=float)
-
-
-def _bones(bones, b: int) -> list[int]:
-    if bones is None:
-        return list(range(b))
-    todo = np.unique(_checks.index_array("bones", bones, ndim=1)).tolist()
-    if todo and (todo[0] < 0 or todo[-1] >= b):
-        raise ValueError(f"bones must hold bone indices in 0..{b - 1}, got {list(bones)!r}")
-    return todo
 
 
 def _volume_weights(rig: Rig, W) -> np.ndarray:

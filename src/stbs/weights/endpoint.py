@@ -240,7 +240,7 @@ def heat_endpoint(V, F, sk: Skeleton, *, W=None, threshold: float | None = DEFAU
     threshold = _threshold(threshold)
     n, b = V.shape[0], sk.n_bones
     W = _bone_weights(W, n, b)
-    todo = _bone_list(bones, b)
+    todo = _checks.bone_list(bones, b)
     guard = Guard(progress)
     solver = BoneHeatSolver(V, F, backend=backend)
     F = solver.F
@@ -456,16 +456,6 @@ def _bone_workers(BBWSolver, b: int) -> int:
     return parallel_workers(_cholmod.default_threads(), b)
 
 
-def _bone_list(bones, b: int) -> list[int]:
-    """``bones`` (None: all) as a sorted list of distinct bone indices, checked."""
-    if bones is None:
-        return list(range(b))
-    todo = np.unique(_checks.index_array("bones", bones, ndim=1)).tolist()
-    if todo and (todo[0] < 0 or todo[-1] >= b):
-        raise ValueError(f"bones must hold bone indices in 0..{b - 1}, got {bones!r}")
-    return todo
-
-
 class _Mesh:
     """What the per-bone constraints of :func:`bbw_endpoint` need of the mesh."""
 
@@ -575,7 +565,7 @@ def bbw_endpoint(V, sk: Skeleton, *, T=None, F=None, W=None,
     mesh = _Mesh(V, Ele, sk)
     E = projection(V, sk)
     restrict = W is not None and threshold is not None
-    todo = _bone_list(bones, b)
+    todo = _checks.bone_list(bones, b)
     jv, far = _joint_vertices(V, mesh.used, sk, mesh.on_tol,
                               range(sk.n_joints) if joints
                               else np.unique(sk.BE[todo]) if todo else [])
@@ -751,7 +741,7 @@ def endpoint_weights(V, sk: Skeleton, *, method: EndpointMethod = "projection",
                              f"with method={method!r}")
     threshold = _threshold(threshold)
     if method in ("projection", "idw"):
-        todo = _bone_list(bones, sk.n_bones)
+        todo = _checks.bone_list(bones, sk.n_bones)
         guard = Guard(progress)
         E = projection(V, sk)
         if method == "idw":

@@ -58,6 +58,7 @@ from ...clip import Clip
 from ...rig.joints import rig_from_joints
 from ...rig.model import Rig
 from .._parse import suffix
+from .._stack import MeshStack
 from .accessors import (
     FLOAT_ONLY,
     JOINT_INDICES,
@@ -410,28 +411,15 @@ def _joint_parents(scene: Scene, nodes: list[int], col: dict[int, int]) -> np.nd
 
 
 @dataclass
-class _Geometry:
+class _Geometry(MeshStack):
     """The primitives read so far, in the order they are stacked into the rig's ``V``,
     ``F`` (indices into the stack) and ``W``; ``Es`` the endpoint weights (or None) of
     the skinned ones; ``prims`` and ``parts`` where each skinned primitive and each
     rigid part came from."""
 
-    Vs: list = field(default_factory=list)
-    Fs: list = field(default_factory=list)
-    Ws: list = field(default_factory=list)
     Es: list = field(default_factory=list)
     prims: list = field(default_factory=list)
     parts: list = field(default_factory=list)
-    off: int = 0
-
-    def add(self, V: np.ndarray, F: np.ndarray, W: np.ndarray) -> int:
-        """Stack one primitive's vertices, triangles and weights; its first row."""
-        start = self.off
-        self.Vs.append(V)
-        self.Fs.append(F + start)
-        self.Ws.append(W)
-        self.off += len(V)
-        return start
 
 
 def _rebound(V: np.ndarray, W: np.ndarray, to_bone: np.ndarray, X: np.ndarray) -> np.ndarray:
