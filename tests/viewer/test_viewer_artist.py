@@ -20,6 +20,7 @@ from test_viewer_page import (  # noqa: F401  (fixture)
     browser,
     tube_rig,
 )
+from viewer_client import grid_mesh
 
 import stbs
 
@@ -36,14 +37,7 @@ def figure_rig(seed=5) -> stbs.Rig:
     """A 2D figure, symmetric about x = 0: a spine and two two-bone arms named .L/.R."""
     rng = np.random.default_rng(seed)
     xs, ys = np.linspace(-2.3, 2.3, 47), np.linspace(-1.2, 1.5, 28)
-    X, Y = np.meshgrid(xs, ys)
-    V = np.column_stack([X.ravel(), Y.ravel()])
-    nx = len(xs)
-    F = []
-    for i in range(len(ys) - 1):
-        for j in range(nx - 1):
-            q = i * nx + j
-            F += [[q, q + 1, q + nx + 1], [q, q + nx + 1, q + nx]]
+    V, F = grid_mesh(xs, ys)
     C = np.array([[0, -1], [0, 1], [1, 1], [2, 1], [-1, 1], [-2, 1]], dtype=float)
     BE = np.array([[0, 1], [1, 2], [2, 3], [1, 4], [4, 5]])
     names = ["spine", "arm.L", "hand.L", "arm.R", "hand.R"]

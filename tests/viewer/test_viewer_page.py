@@ -19,6 +19,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from viewer_client import grid_mesh
 
 import stbs
 from stbs.viewer import STATIC_DIR, ViewerServer
@@ -78,14 +79,7 @@ def plate_rig(seed=11) -> stbs.Rig:
     """A 2D plate, a 20-bone tree: a 10-bone spine and two 5-bone branches off joint 5."""
     rng = np.random.default_rng(seed)
     xs, ys = np.linspace(-0.3, 5.3, 57), np.linspace(-3.0, 3.0, 61)
-    X, Y = np.meshgrid(xs, ys)
-    V = np.column_stack([X.ravel(), Y.ravel()])
-    nx = len(xs)
-    F = []
-    for i in range(len(ys) - 1):
-        for j in range(nx - 1):
-            p = i * nx + j
-            F += [[p, p + 1, p + nx + 1], [p, p + nx + 1, p + nx]]
+    V, F = grid_mesh(xs, ys)
     spine = np.column_stack([np.linspace(0, 5, 11), np.zeros(11)])
     up = np.column_stack([np.full(5, 2.5), np.linspace(0.5, 2.5, 5)])
     down = np.column_stack([np.full(5, 2.5), -np.linspace(0.5, 2.5, 5)])

@@ -37,6 +37,19 @@ def bar_rig(with_E: bool = True) -> stbs.Rig:
     return stbs.Rig(V=V, F=F, skeleton=sk, W=W, E=projection(V, sk) if with_E else None)
 
 
+def grid_mesh(xs, ys) -> tuple[np.ndarray, np.ndarray]:
+    """A 2D grid's vertices (row by row along ``xs``) and its triangles, two a cell."""
+    X, Y = np.meshgrid(xs, ys)
+    V = np.column_stack([X.ravel(), Y.ravel()])
+    nx = len(xs)
+    F = []
+    for i in range(len(ys) - 1):
+        for j in range(nx - 1):
+            q = i * nx + j
+            F += [[q, q + 1, q + nx + 1], [q, q + nx + 1, q + nx]]
+    return V, np.array(F)
+
+
 def request(srv, method: str, path: str, *, body: bytes | str | None = None,
             token: bool | str = False, host: str | None = None,
             headers: dict | None = None) -> Reply:
