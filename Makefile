@@ -8,6 +8,8 @@ VENV := .venv
 BIN := $(VENV)/bin
 PIP := $(BIN)/python -m pip --disable-pip-version-check -q
 DEMO_OUT ?= demo-out
+# The PyTorch release the test environment takes in its CPU build (docs/dependencies.md).
+TORCH_CPU ?= 2.13.0
 # The viewer's bundles (three.js and viewer/src, by esbuild; built, never committed): the
 # page's and the peer page's of stbs bench --viewer, in src/stbs/viewer/static/. Declared
 # once, in viewer/bundles.json, and built by viewer/build.mjs, which npm run build and
@@ -28,8 +30,11 @@ $(VENV)/.stamp-install: pyproject.toml | $(BIN)/python $(BUNDLES)
 	$(PIP) install -e ".[demo,weights,triangle]"
 	@touch $@
 
+# PyTorch pinned first to its CPU build (TORCH_CPU; pip takes it from a local wheel
+# folder or the index pip is given), so that the torch extra's range installs nothing more.
 $(VENV)/.stamp-test: pyproject.toml | $(BIN)/python $(BUNDLES)
-	$(PIP) install -e ".[test,bench,embree,triangle,tetgen,weights,demo,batch,usd,fbx]"
+	$(PIP) install "torch==$(TORCH_CPU)"
+	$(PIP) install -e ".[test,bench,embree,triangle,tetgen,weights,demo,batch,usd,fbx,torch,jax]"
 	@touch $@
 
 # npm packages from the committed lock file (viewer/package-lock.json), then the bundle.

@@ -45,6 +45,9 @@ INSTALLS_ON_BOOKWORM = {
     "distributed": "2024.8",
     "usd-core": "26.11",     # the release tested (its UsdValidation checks the files)
     "ufbx": "0.0.5",         # the release tested (the binding by ufbx's author)
+    "torch": "2.13",         # the release tested, in its CPU build (the Makefile pins it)
+    "jax": "0.10",           # the release tested, with its jaxlib (CPU)
+    "py-dem-bones": "0.13",  # the release tested (EA's Dem Bones, a benchmark peer)
 }
 # Known not to install there; the reason is the failure message.
 NOT_ON_BOOKWORM = {
