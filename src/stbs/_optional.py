@@ -29,6 +29,9 @@ EXTRAS = {
     "dask": ("dask", "batch"),
     "distributed": ("distributed", "batch"),
     "pxr": ("usd-core", "usd"),
+    "torch": ("torch", "torch"),
+    "jax": ("jax", "jax"),
+    "py_dem_bones": ("py-dem-bones", "bench"),
 }
 
 

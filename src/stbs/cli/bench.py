@@ -1,7 +1,9 @@
 """``stbs bench``: delegates to :mod:`stbs.bench.skinning` (skinning throughput), with
-``--weights`` to :mod:`stbs.bench.weights` (bounded biharmonic weights), or with
-``--viewer`` to :mod:`stbs.bench.viewer` (the viewer's frame time in a headless
-browser), imported only when the command runs."""
+``--weights`` to :mod:`stbs.bench.weights` (bounded biharmonic weights), ``--viewer`` to
+:mod:`stbs.bench.viewer` (the viewer's frame time in a headless browser), ``--animate``
+to :mod:`stbs.bench.animate` (baking), ``--learn`` to :mod:`stbs.bench.learn`
+(differentiable skinning) or ``--fit`` to :mod:`stbs.bench.fit` (decomposing a mesh
+animation), each imported only when the command runs."""
 
 from __future__ import annotations
 
@@ -14,7 +16,8 @@ from ._errors import CommandError
 
 NAME = "bench"
 HELP = ("throughput of the four skinning methods, or (--weights) of bounded biharmonic "
-        "weights, (--viewer) the viewer's frame time, (--animate) baking")
+        "weights, (--viewer) the viewer's frame time, (--animate) baking, (--learn) "
+        "differentiable skinning, (--fit) fitting")
 EXAMPLE = "stbs bench"
 DESCRIPTION = ("Time lbs, dqs, stbs-lbs and stbs-dqs per vertex on this machine, beside "
                "a NumPy and a SciPy LBS timed the same way (the options below come from "
@@ -65,6 +68,38 @@ ANIMATE_EPILOG = ("examples:\n  stbs bench --animate\n"
                   "  stbs bench --animate --vertices 100000 --workers 0 --json bake.json")
 
 
+LEARN_DESCRIPTION = (
+    "Time differentiable skinning (stbs.skin): poses x vertices per second of each "
+    "method's batched forward and backward passes on PyTorch and JAX, beside the compiled "
+    "NumPy kernels and an LBS written the usual PyTorch way, on one rig in one run (the "
+    "options below come from stbs.bench.learn).")
+LEARN_EPILOG = ("examples:\n  stbs bench --learn\n"
+                "  stbs bench --learn --vertices 100000 --batch 16 --backends torch\n"
+                "  stbs bench --learn --compile --device cuda --json learn.json")
+FIT_DESCRIPTION = (
+    "Time and score skinning decomposition (stbs.fit.decompose) of a mesh animation: RMSE "
+    "as a percentage of the bounding-box diagonal and seconds, beside Dem Bones' LBS on "
+    "the same frames in the same run (the options below come from stbs.bench.fit).")
+FIT_EPILOG = ("examples:\n  stbs bench --fit\n  stbs bench --fit --bones 10 --json fit.json")
+
+# flag -> (module, description, epilog); no flag: the skinning benchmark (stbs.bench's
+# names, those of stbs.bench.skinning)
+BENCHMARKS = {
+    "--weights": ("stbs.bench.weights", WEIGHTS_DESCRIPTION, None),
+    "--viewer": ("stbs.bench.viewer", VIEWER_DESCRIPTION, VIEWER_EPILOG),
+    "--animate": ("stbs.bench.animate", ANIMATE_DESCRIPTION, ANIMATE_EPILOG),
+    "--learn": ("stbs.bench.learn", LEARN_DESCRIPTION, LEARN_EPILOG),
+    "--fit": ("stbs.bench.fit", FIT_DESCRIPTION, FIT_EPILOG),
+}
+BENCH_HELP = {
+    "--weights": "time bounded biharmonic weights instead",
+    "--viewer": "time the viewer's page in headless Chromium instead",
+    "--animate": "time baking animations instead",
+    "--learn": "time differentiable skinning (PyTorch, JAX) instead",
+    "--fit": "time and score fitting a rig to a mesh animation instead",
+}
+
+
 def _wants(argv: Sequence[str], flag: str) -> bool:
     args = list(argv)
     if "--" in args:
@@ -72,53 +107,37 @@ def _wants(argv: Sequence[str], flag: str) -> bool:
     return flag in args
 
 
-def _wants_weights(argv: Sequence[str]) -> bool:
-    return _wants(argv, "--weights")
+def _weights_epilog(bench) -> str:
+    cases = getattr(bench, "CASES", {})
+    return ("cases:\n" + "".join(f"  {c.name:<10} {c.about}\n" for c in cases.values())
+            + "\n" + WEIGHTS_EPILOG)
 
 
 def run_delegated(argv: Sequence[str], *, debug: bool,
                   parser_class: type[argparse.ArgumentParser]) -> int:
     """Parse ``argv`` with the benchmark module's ``add_arguments`` and call its ``run``:
-    :mod:`stbs.bench.weights` when ``--weights`` is given, :mod:`stbs.bench.viewer` when
-    ``--viewer`` is, else :mod:`stbs.bench` (the names of :mod:`stbs.bench.skinning`).
-    A module's ``requires(args)`` (optional import names) is checked first."""
-    weights, viewer = _wants_weights(argv), _wants(argv, "--viewer")
-    animate = _wants(argv, "--animate")
-    if weights + viewer + animate > 1:
-        raise CommandError("--weights, --viewer and --animate are three benchmarks: give "
-                           "one of them")
-    # stbs.bench is the skinning benchmark's API (stbs.bench.skinning's names)
-    bench = _module("stbs.bench.weights" if weights else
-                    "stbs.bench.viewer" if viewer else
-                    "stbs.bench.animate" if animate else "stbs.bench")
-    epilog = VIEWER_EPILOG if viewer else ANIMATE_EPILOG if animate else EPILOG
-    description = (WEIGHTS_DESCRIPTION if weights else
-                   VIEWER_DESCRIPTION if viewer else
-                   ANIMATE_DESCRIPTION if animate else DESCRIPTION)
-    viewer = viewer or animate          # neither adds the skinning benchmark's flags below
-    if weights:
-        cases = getattr(bench, "CASES", {})
-        epilog = "cases:\n" + "".join(f"  {c.name:<10} {c.about}\n" for c in cases.values())
-        epilog += "\n" + WEIGHTS_EPILOG
+    the module :data:`BENCHMARKS` names for the flag given (``--weights``, ``--viewer``,
+    ``--animate``, ``--learn``, ``--fit``), else :mod:`stbs.bench` (the names of
+    :mod:`stbs.bench.skinning`). A module's ``requires(args)`` (optional import names) is
+    checked first."""
+    chosen = [flag for flag in BENCHMARKS if _wants(argv, flag)]
+    if len(chosen) > 1:
+        raise CommandError(f"{', '.join(chosen)} are different benchmarks: give one of them")
+    flag = chosen[0] if chosen else None
+    name, description, epilog = BENCHMARKS[flag] if flag else ("stbs.bench", DESCRIPTION,
+                                                                 EPILOG)
+    bench = _module(name)
+    if flag == "--weights":
+        epilog = _weights_epilog(bench)
     p = parser_class(prog=f"stbs {NAME}", description=description,
                      epilog=epilog,
                      formatter_class=argparse.RawDescriptionHelpFormatter)
     bench.add_arguments(p)
-    if not weights and not viewer and not any("--weights" in a.option_strings
-                                              for a in p._actions):
-        p.add_argument("--weights", action="store_true",
-                       help="time bounded biharmonic weights instead "
-                            "(its options: stbs bench --weights --help)")
-    if not weights and not viewer and not any("--viewer" in a.option_strings
-                                              for a in p._actions):
-        p.add_argument("--viewer", action="store_true",
-                       help="time the viewer's page in headless Chromium instead "
-                            "(its options: stbs bench --viewer --help)")
-    if not weights and not viewer and not any("--animate" in a.option_strings
-                                              for a in p._actions):
-        p.add_argument("--animate", action="store_true",
-                       help="time baking animations instead "
-                            "(its options: stbs bench --animate --help)")
+    if flag is None:
+        for other, text in BENCH_HELP.items():
+            if not any(other in a.option_strings for a in p._actions):
+                p.add_argument(other, action="store_true",
+                               help=f"{text} (its options: stbs bench {other} --help)")
     if not any("--debug" in a.option_strings for a in p._actions):
         p.add_argument("--debug", action="store_true", default=argparse.SUPPRESS,
                        help="show the full traceback instead of a one-line error")
