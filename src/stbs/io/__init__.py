@@ -32,6 +32,7 @@ function               formats
 :func:`read_rig`       .npz .gltf .glb .fbx -> :class:`stbs.Rig`
 :func:`write_rig`      .npz .gltf .glb (a glTF character keeps its file, plus E)
 :func:`read_polygons`  .poly (Triangle's planar straight-line graph) -> polygons
+:func:`read_sequence`  .npz mesh animation, or a rest mesh and its frames as mesh files
 =====================  ==============================================
 """
 
@@ -48,6 +49,7 @@ from .mesh import MESH_READ_EXTENSIONS, MESH_WRITE_EXTENSIONS, Mesh, read_mesh, 
 from .poly import read_polygons
 from .pose import pose_to_dict, read_pose, write_pose
 from .rig import RIG_VERSION, load_rig, save_rig
+from .sequence import MeshSequence, read_sequence
 from .skeleton_file import SKELETON_READ_EXTENSIONS, read_skeleton
 from .tgf import read_tgf, write_tgf
 from .usd import USD_EXTENSIONS, write_usd
@@ -63,6 +65,6 @@ __all__ = [
     "read_clip", "write_clip", "clip_to_dict",
     "read_polygons", "read_bvh", "read_gltf", "write_gltf", "GLTF_EXTENSIONS",
     "read_rig", "write_rig", "RIG_EXTENSIONS", "write_usd", "USD_EXTENSIONS",
-    "read_fbx", "FBX_EXTENSIONS",
+    "read_fbx", "FBX_EXTENSIONS", "MeshSequence", "read_sequence",
     "atomic_open", "atomic_save", "atomic_write",
 ]
