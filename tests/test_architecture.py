@@ -25,8 +25,8 @@ SRC = Path(__file__).resolve().parents[1] / "src" / "stbs"
 
 MATHS = {"_checks", "_arrays", "_optional", "_jit", "_json", "_inputs", "methods", "geometry",
          "transforms", "skeleton", "pose", "clip", "motion", "retargeting", "skinning", "weights",
-         "meshing", "shapes"}
-DATA = {"rig", "io"}
+         "meshing", "shapes", "skin"}
+DATA = {"rig", "io", "fit"}
 FRONT = {"cli", "demo", "bench", "viewer", "bake"}
 TIER = {**{m: 0 for m in MATHS}, **{m: 1 for m in DATA}, **{m: 2 for m in FRONT}}
 NAMES = ("maths", "data", "front end")

@@ -32,6 +32,7 @@ from . import bench as _bench
 from . import deform as _deform
 from . import demo as _demo
 from . import export as _export
+from . import fit as _fit
 from . import rig as _rig
 from . import view as _view
 from . import weights as _weights
@@ -67,7 +68,7 @@ def _add_debug(p: argparse.ArgumentParser, *, top: bool) -> None:
                    help="show the full traceback instead of a one-line error")
 
 
-COMMANDS = (_deform, _rig, _weights, _demo, _bench, _view, _export, _animate)
+COMMANDS = (_deform, _rig, _weights, _demo, _bench, _view, _export, _animate, _fit)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -112,7 +113,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         return _code(exc)
     if args.command is None:
         print(f"{PROG}: error: a command is required: deform, rig, weights, demo, bench, view, "
-              f"export, animate or version (see '{PROG} --help')", file=sys.stderr)
+              f"export, animate, fit or version (see '{PROG} --help')", file=sys.stderr)
         return 2
     prog = f"{PROG} {args.command}"
     if extra and args._cmd is not _bench:
@@ -160,7 +161,7 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 #: Arguments that name what a command writes; every other argument naming an existing
 #: file is something it reads.
-_OUTPUT_ARGS = ("output", "out", "save_as")
+_OUTPUT_ARGS = ("output", "out", "save_as", "clip_out")
 
 
 def _refuse_output_over_input(args: argparse.Namespace) -> None:
