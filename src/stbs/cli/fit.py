@@ -152,9 +152,6 @@ def _options(args, *names) -> dict:
 
 
 def _decompose(args) -> int:
-    from ..fit import decompose
-    from ..io import read_sequence, save_rig, write_clip
-
     _positive("bones", args.bones)
     _positive("influences", args.influences)
     _positive("iterations", args.iterations)
@@ -162,6 +159,9 @@ def _decompose(args) -> int:
     _positive("fps", args.fps, 1e-9)
     if args.clip_out:
         _suffix(args.clip_out, (".json",), "--clip-out")
+    from ..fit import decompose
+    from ..io import read_sequence, save_rig, write_clip
+
     seq = read_sequence(args.animation if len(args.animation) > 1 else args.animation[0])
     dec = decompose(seq.rest, seq.frames, args.bones, F=seq.F,
                     max_influences=args.influences, method=args.method, seed=args.seed,
@@ -198,11 +198,11 @@ def _examples(args, rig):
 
 
 def _fit_weights(args) -> int:
+    _positive("iterations", args.iterations)
+    _suffix(args.output, RIG_OUT, "output")
     from ..fit import fit_endpoint_weights, fit_weights
     from ..io import read_rig, save_rig
 
-    _positive("iterations", args.iterations)
-    _suffix(args.output, RIG_OUT, "output")
     rig = read_rig(args.rig)
     poses, frames = _examples(args, rig)
     if args.job == "endpoints":
@@ -224,11 +224,11 @@ def _fit_weights(args) -> int:
 
 
 def _helpers(args) -> int:
+    _positive("k", args.k)
+    _suffix(args.output, HELPER_OUT, "output")
     from ..fit import helper_joints
     from ..io import read_clip, read_rig, save_rig
 
-    _positive("k", args.k)
-    _suffix(args.output, HELPER_OUT, "output")
     rig = read_rig(args.rig)
     clip = read_clip(args.clip, rig.skeleton) if args.clip else None
     helper = helper_joints(rig, k=args.k, method=args.method, seed=args.seed,
