@@ -67,7 +67,7 @@ def _rigid_errors(X, Y, R, t) -> np.ndarray:
     n, b = X.shape[0], R.shape[1]
     err = np.empty((n, b))
     for j in range(b):
-        D = np.einsum("fij,nj->fni", R[:, j], X) + t[:, j, None, :] - Y
+        D = X @ R[:, j].transpose(0, 2, 1) + t[:, j, None, :] - Y
         err[:, j] = np.einsum("fni,fni->n", D, D)
     return err
 

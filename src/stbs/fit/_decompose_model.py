@@ -75,7 +75,7 @@ def local_points(X, e, a, u, ell, sig, th) -> np.ndarray:
 def bone_points(X, e, bones: Bones, i: int, st: State) -> np.ndarray:
     """``T_i`` (F, m, 3) of rest points ``X`` (m, 3) with endpoint weights ``e`` (m,)."""
     M = local_points(X, e, bones.a[i], bones.u[i], bones.ell[i], st.sig[:, i], st.th[:, i])
-    return st.O[:, i, None, :] + np.einsum("fij,fmj->fmi", st.R[:, i], M)
+    return st.O[:, i, None, :] + M @ st.R[:, i].transpose(0, 2, 1)
 
 
 def reconstruct(X, bones: Bones, st: State) -> np.ndarray:
@@ -118,7 +118,7 @@ def _fit_rigid(M, w, Z):
     S = w2.sum()
     Mbar = np.einsum("m,fmi->fi", w2, M) / S
     Zbar = np.einsum("m,fmi->fi", w, Z) / S
-    H = np.einsum("m,fmi,fmj->fij", w, M, Z) - S * Mbar[:, :, None] * Zbar[:, None, :]
+    H = (w[:, None] * M).transpose(0, 2, 1) @ Z - S * Mbar[:, :, None] * Zbar[:, None, :]
     R = procrustes(H)
     return R, Zbar - np.einsum("fij,fj->fi", R, Mbar)
 
@@ -188,7 +188,7 @@ def fit_bone(X, Y, bones: Bones, i: int, st: State, *, stbs: bool, rounds: int =
         if not stbs:
             break
         # the residual in the bone's rest frame: R^T (Z - w O)
-        L = np.einsum("fji,fmj->fmi", st.R[:, i], Z - w[:, None] * st.O[:, i, None, :])
+        L = (Z - w[:, None] * st.O[:, i, None, :]) @ st.R[:, i]
         st.sig[:, i] = _fit_stretch(L @ u, w, e, z, ell, st.sig[:, i])
         Lr = L - (L @ u)[..., None] * u
         th, turn = _fit_twist(np.einsum("fmi,mi->fm", Lr, r), np.einsum("fmi,mi->fm", Lr, ur),
@@ -198,8 +198,9 @@ def fit_bone(X, Y, bones: Bones, i: int, st: State, *, stbs: bool, rounds: int =
         # O for the new twist and stretch (the rigid optimum given R)
         M = local_points(Xi, e, a, u, ell, st.sig[:, i], st.th[:, i])
         w2 = w * w
+        Mw = np.einsum("m,fmi->fi", w2, M)
         st.O[:, i] = (np.einsum("m,fmi->fi", w, Z)
-                      - np.einsum("m,fij,fmj->fi", w2, st.R[:, i], M)) / w2.sum()
+                      - np.einsum("fij,fj->fi", st.R[:, i], Mw)) / w2.sum()
     T_new = bone_points(Xi, e, bones, i, st)
     D = w[:, None] * T_new - Z
     if float(np.einsum("fmi,fmi->", D, D)) > best:        # a step that did not help
@@ -223,9 +224,22 @@ def fit_endpoints(X, Y, bones: Bones, i: int, st: State, E0: np.ndarray, lam: fl
     T_old = bone_points(Xi, e_old, bones, i, st)
     Z = Y[:, idx] - (st.P[:, idx] - w[:, None] * T_old)
 
+    # |w M(e) - G|^2 with G = R^T (z - w O) (the residual in the bone's rest frame),
+    # M(e) = (z + e ds) u + cos(th(e)) r + sin(th(e)) u x r: scalars per frame and vertex
+    a, u, ell = bones.a[i], bones.u[i], bones.ell[i]
+    q = Xi - a
+    z = q @ u
+    r = q - z[:, None] * u
+    G = (Z - w[:, None] * st.O[:, i, None, :]) @ st.R[:, i]
+    gu, gc, gs = G @ u, np.einsum("fmi,mi->fm", G, r), np.einsum("fmi,mi->fm", G, np.cross(u, r))
+    ds = ((st.sig[:, i] - 1.0) * ell)[:, None]                      # (F, 1)
+    ta, tb = st.th[:, i, :1], st.th[:, i, 1:]
+
     def cost(e):
-        D = w[:, None] * bone_points(Xi, e, bones, i, st) - Z
-        return np.einsum("fmi,fmi->m", D, D) + lam * (e - e0) ** 2
+        ang = ta + e * (tb - ta)
+        ax = z + e * ds
+        f = w * w * ax * ax - 2 * w * (ax * gu + np.cos(ang) * gc + np.sin(ang) * gs)
+        return f.sum(axis=0) + lam * (e - e0) ** 2
 
     grid = np.linspace(0.0, 1.0, E_GRID)
     C = np.stack([cost(np.full(idx.size, g)) for g in grid])           # (G, m)

@@ -64,7 +64,7 @@ def fit_weights(X, Y, bones: Bones, st: State, *, k: int, avg, lam: float) -> No
     c = min(b, k + EXTRA_CANDIDATES)
     cand = _candidates(X, Y, bones, st, c)
     A = _design(X, Y, bones, st, cand)
-    H = np.einsum("nqi,nqj->nij", A, A)
+    H = A.transpose(0, 2, 1) @ A
     rows = np.arange(n)[:, None]
     if avg is not None and lam > 0:
         prior = (avg @ st.W)[rows, cand]

@@ -574,17 +574,18 @@ def helper_joints(rig_or_V, sk: Skeleton | None = None, W=None, E=None, *, k: in
     --------
     >>> import numpy as np
     >>> import stbs
-    >>> from stbs.fit import helper_joints
+    >>> from stbs.fit.helper_joints import helper_joints
     >>> V, F, sk, W = stbs.shapes.cigar(8)
     >>> E = stbs.endpoint_weights(V, sk, method="projection")
     >>> helper = helper_joints(V, sk, W, E, k=3, F=F)
     >>> helper.skeleton.names
-    ['bone0', 'bone0_twist_1', 'bone0_twist_2']
+    ['bone', 'bone_twist_1', 'bone_twist_2']
     >>> pose = stbs.forward_kinematics(sk, stretch=[1.5], twist=[0, np.pi])
     >>> U = helper.deform(pose)                       # plain LBS of rigid helper joints
     >>> Ustbs = stbs.deform(V, sk, pose, W, E, method="stbs-dqs")
-    >>> bool(np.abs(U - Ustbs).max() < 0.05 * np.ptp(V))
-    True
+    >>> diagonal = np.linalg.norm(np.ptp(V, axis=0))
+    >>> round(float(np.linalg.norm(U - Ustbs, axis=1).max() / diagonal), 3)  # 180 deg, k = 3
+    0.023
     """
     k = _count(k)
     method = _checks.choice("method", method, METHODS)
