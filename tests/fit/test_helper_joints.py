@@ -19,10 +19,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 import scipy.sparse as sp
-from rigs import random_rotations
 
 import stbs
 import stbs.fit
+from rigs import random_rotations
 from stbs import io
 from stbs.fit.helper_joints import HelperRig, helper_joints, helper_params, helper_skeleton
 from stbs.shapes import bar, cigar
@@ -154,6 +154,11 @@ def test_the_weights_are_convex_sparse_and_add_up_per_bone(arm):
         assert np.all(rig.W[helper.bone_weights.toarray() > 0] > 0)
     np.testing.assert_allclose(arm["k3_8"].bone_weights.toarray(), rig.W, atol=1e-12)
     assert np.diff(arm["k3_8"].W.indptr).max() > 4
+    with pytest.raises(ValueError, match="glTF is written with 4 joints a vertex .JOINTS_0., "
+                                         "this helper rig has up to [5-8]; make it with "
+                                         "max_influences=4"):
+        arm["k3_8"].write_gltf(Path("never-written.glb"))
+    assert not Path("never-written.glb").exists()
 
 
 def test_least_squares_beat_hat_weights_on_their_own_poses():
@@ -384,7 +389,7 @@ def test_bad_input_is_refused_with_the_argument_named(bar_rig):
         helper_joints(V, sk, W)
     with pytest.raises(ValueError, match=r"E must lie in \[0, 1\], got 1\.5"):
         helper_joints(V, sk, W, E + 0.5 * (E == 1))
-    with pytest.raises(ValueError, match=r"W must have shape \(%d, 2\)" % len(V)):
+    with pytest.raises(ValueError, match=rf"W must have shape \({len(V)}, 2\)"):
         helper_joints(V, sk, W[:, :1], E)
     with pytest.raises(TypeError, match="give a stbs.Rig alone"):
         helper_joints(bar_rig, sk)

@@ -308,9 +308,21 @@ class HelperRig:
     def write_gltf(self, path: str | os.PathLike, clip: Clip | None = None) -> None:
         """Write the helper rig (and ``clip`` of the STBS skeleton, converted by
         :meth:`clip`) as a glTF 2.0 LBS skin with node animation
-        (:func:`stbs.io.write_gltf`)."""
+        (:func:`stbs.io.write_gltf`), which any glTF viewer or engine plays.
+
+        Raises
+        ------
+        ValueError
+            A vertex with more than 4 helpers (``max_influences=8``): the file carries
+            4 a vertex (``JOINTS_0``), so it would not play as this rig does.
+        """
         from ..io import write_gltf
 
+        most = int(np.diff(self.W.indptr).max())
+        if most > 4:
+            raise ValueError(f"write_gltf: glTF is written with 4 joints a vertex (JOINTS_0), "
+                             f"this helper rig has up to {most}; make it with "
+                             "max_influences=4")
         write_gltf(path, self.rig(), None if clip is None else self.clip(clip))
 
     def __repr__(self) -> str:
