@@ -213,3 +213,47 @@ def test_horse_part_error_falls_across_iterations(horse_part):
     assert d.rmse == pytest.approx(h[-1], rel=1e-6)
     lbs = decompose(rest, frames, 6, F=F, iterations=6, seed=0, method="lbs")
     assert d.rmse < lbs.rmse
+
+
+# --------------------------------------------------------------------------- the benchmark
+def test_bench_fit_runs_both_methods_and_measures_them_alike(chain, tmp_path):
+    pytest.importorskip("py_dem_bones")
+    from stbs.bench import fit as bench
+
+    V, F, Y = chain
+    np.savez(tmp_path / bench.FILE, rest=V, frames=Y, F=F)
+    lines: list[str] = []
+    doc = bench.run((3,), iterations=4, out=lines.append, data=tmp_path)
+    rows = {r["method"].split()[0]: r for r in doc["rows"]}
+    assert set(rows) == {"STBS-SSDR", "Dem"} and all(r["bones"] == 3 for r in rows.values())
+    diag = np.linalg.norm(V.max(0) - V.min(0))
+    ours = decompose(V, Y, 3, F=F, iterations=4, seed=0)
+    assert rows["STBS-SSDR"]["rmse"] == pytest.approx(ours.rmse, rel=1e-9)
+    assert rows["STBS-SSDR"]["percent"] == pytest.approx(100 * ours.rmse / diag)
+    # the peer's error by hand from its own weights and transforms
+    from py_dem_bones import solve_skinning
+    res = solve_skinning(V, Y, 3, faces=F, max_influences=4, iterations=4)
+    U = np.einsum("bn,fbij,nj->fni", res.weights, res.transforms[:, :, :3, :3], V) \
+        + np.einsum("bn,fbi->fni", res.weights, res.transforms[:, :, :3, 3])
+    assert rows["Dem"]["rmse"] == pytest.approx(_rmse(U, Y), rel=1e-9)
+    text = "\n".join(lines)
+    assert "STBS-SSDR (stbs-lbs)" in text and "Dem Bones (lbs)" in text
+    assert f"{rows['STBS-SSDR']['percent']:.3f}" in text
+    assert "3 bones: STBS-SSDR's RMSE is" in text
+
+
+def test_bench_fit_data_is_found_or_named(tmp_path, monkeypatch):
+    from stbs.bench import fit as bench
+
+    (tmp_path / "sequences").mkdir()
+    f = tmp_path / "sequences" / bench.FILE
+    np.savez(f, rest=np.zeros((3, 3)))
+    assert bench.find_data(tmp_path) == f
+    assert bench.find_data(f) == f
+    monkeypatch.setenv("STBS_DATA", str(tmp_path))
+    assert bench.find_data() == f
+    with pytest.raises(ValueError, match="horse-gallop.npz not found; tried"):
+        bench.find_data(tmp_path / "nowhere")
+    with pytest.raises(ValueError, match="has no frames, F"):
+        bench.load_sequence(f)
+    assert bench.main(["--data", str(tmp_path / "nowhere")]) == 2
