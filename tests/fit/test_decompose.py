@@ -154,8 +154,8 @@ def test_progress_reports_stages_and_a_raise_cancels(chain):
     (dict(method="dqs"), r"method must be one of 'stbs-lbs', 'lbs', got 'dqs'"),
     (dict(smoothness=-1.0), r"smoothness must be a finite number >= 0"),
     (dict(F=[[0, 1, 20]]), r"F must hold vertex indices in 0..19, got 20"),
-    (dict(frames=np.ones((2, 20, 3)), n_bones=4), r"stbs-lbs with max_influences=4 needs at least 3 "
-                                       r"frames.*got 2"),
+    (dict(frames=np.ones((2, 20, 3)), n_bones=4),
+     r"stbs-lbs with max_influences=4 needs at least 3 frames.*got 2"),
 ])
 def test_bad_inputs_one_clear_error_each(change, match):
     rng = np.random.default_rng(0)
