@@ -245,7 +245,8 @@ def forearm_radius(rig):
     return np.linalg.norm(r, axis=1).max()
 
 
-@pytest.mark.parametrize("method", ["stbs-dqs", "stbs-lbs"])
+@pytest.mark.parametrize("method", ["stbs-dqs", pytest.param("stbs-lbs",
+                                                              marks=pytest.mark.slow)])
 def test_the_twisted_and_stretched_arm_plays_within_the_chord_bound(arm, method):
     rig, pose = arm["rig"], arm["pose"]
     diagonal = np.linalg.norm(np.ptp(rig.V, axis=0))
