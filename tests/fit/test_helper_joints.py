@@ -71,7 +71,7 @@ def test_the_helpers_sit_along_each_bone_with_both_ends():
 def test_a_helper_is_the_bone_map_at_its_parameter():
     sk = stbs.Skeleton([[1, 0, 0], [3, 0, 0.0]], [[0, 1]])
     pose = stbs.forward_kinematics(sk, stretch=[1.5], twist=[0, np.pi])
-    helper = helper_joints(np.array([[2, 1, 0.0]]), sk, [[1.0]], [[0.5]], k=3, fit="hat")
+    helper = helper_joints(np.array([[2, 1, 0.0]]), sk, [[1.0]], [[0.5]], k=2, fit="hat")
     hp = helper.pose(pose)
     assert np.all(hp.stretch == 1) and np.all(hp.twist == 0)
     # t = 1/2: turned 90 degrees about x, starting half-way along the stretched bone (3)
@@ -86,11 +86,12 @@ def test_a_helper_is_the_bone_map_at_its_parameter():
 
 
 def test_two_helpers_half_a_turn_apart_cut_the_chord_to_the_axis():
-    # k = 2: helpers at e = 0 and 1, 180 degrees apart; a vertex at e = 1/2 blends
-    # them half and half, which lands on the bone's axis whatever its radius
+    # k = 1: the bone's joint and one helper, at e = 0 and 1, 180 degrees apart; a
+    # vertex at e = 1/2 blends them half and half, which lands on the bone's axis
+    # whatever its radius
     V, F, sk, W = cigar(8)
     E = stbs.weights.projection(V, sk)
-    helper = helper_joints(V, sk, W, E, k=2, fit="hat", F=F)
+    helper = helper_joints(V, sk, W, E, k=1, fit="hat", F=F)
     pose = stbs.forward_kinematics(sk, twist=[0, np.pi])
     mid = np.flatnonzero(np.abs(V[:, 0]) < 1e-9)
     assert mid.size == 16 and np.allclose(E[mid, 0], 0.5)
@@ -102,7 +103,7 @@ def test_stretch_and_bends_without_twist_are_exact_with_hat_weights(bar_rig):
     # without twist a bone's map is affine in e, so splitting w_i by the hat functions
     # in e reproduces stbs-lbs exactly (two bones a vertex: every bone gets its pair)
     sk = bar_rig.skeleton
-    helper = helper_joints(bar_rig, k=3, fit="hat", method="stbs-lbs")
+    helper = helper_joints(bar_rig, k=2, fit="hat", method="stbs-lbs")
     for seed in range(3):
         pose = bent_pose(sk, seed, stretch=[1.7, 0.6])
         U = stbs.deform(bar_rig.V, sk, pose, bar_rig.W, bar_rig.E, method="stbs-lbs")
@@ -113,7 +114,7 @@ def test_stretch_and_bends_without_twist_are_exact_with_hat_weights(bar_rig):
 def test_rest_and_rigid_poses_are_reproduced_exactly(bar_rig):
     sk, V = bar_rig.skeleton, bar_rig.V
     for fit in ("lsq", "hat"):
-        helper = helper_joints(bar_rig, k=4, fit=fit, n_poses=6)
+        helper = helper_joints(bar_rig, k=3, fit=fit, n_poses=6)
         np.testing.assert_allclose(helper.deform(stbs.Pose.rest(sk)), V, atol=1e-13)
         # two bones a vertex fit in four influences: the bone totals are W itself
         np.testing.assert_allclose(helper.bone_weights.toarray(), bar_rig.W, atol=1e-15)
@@ -123,9 +124,9 @@ def test_rest_and_rigid_poses_are_reproduced_exactly(bar_rig):
             np.testing.assert_allclose(helper.deform(pose), U, atol=1e-12)
 
 
-def test_k1_is_the_bone_itself(bar_rig):
+def test_k0_is_the_bone_itself(bar_rig):
     sk = bar_rig.skeleton
-    helper = helper_joints(bar_rig, k=1)
+    helper = helper_joints(bar_rig, k=0)
     assert helper.skeleton == sk and helper.t.tolist() == [0.0]
     np.testing.assert_allclose(helper.W.toarray(), bar_rig.W, atol=1e-15)
     pose = bent_pose(sk, 4, stretch=[1.4, 0.8], twist=[0, 1.0, 2.0])
@@ -143,11 +144,11 @@ def test_the_weights_are_convex_sparse_and_add_up_per_bone(arm):
     rig = arm["rig"]
     for m, helper in ((4, arm["k3"]), (8, arm["k3_8"])):
         W = helper.W
-        assert sp.issparse(W) and W.shape == (rig.V.shape[0], 12)
+        assert sp.issparse(W) and W.shape == (rig.V.shape[0], 4 * 4)   # 4 joints a bone
         assert W.data.min() > 0 and np.diff(W.indptr).max() <= m
         np.testing.assert_allclose(W.sum(axis=1), 1.0, atol=1e-12)
         # a bone's helpers share exactly its weight (the bone totals)
-        per_bone = W @ sp.csr_array(np.kron(np.eye(4), np.ones((3, 1))))
+        per_bone = W @ sp.csr_array(np.kron(np.eye(4), np.ones((4, 1))))
         np.testing.assert_allclose(per_bone.toarray(), helper.bone_weights.toarray(),
                                    atol=1e-12)
         # only bones the vertex has; with 8 influences every bone keeps its weight
@@ -174,7 +175,7 @@ def test_least_squares_beat_hat_weights_on_their_own_poses():
         return sum(np.sum((helper.deform(p) - stbs.deform(V, sk, p, W, E)) ** 2)
                    for p in poses)
 
-    lsq, hat = (helper_joints(V, sk, W, E, k=2, poses=poses, fit=f) for f in ("lsq", "hat"))
+    lsq, hat = (helper_joints(V, sk, W, E, k=1, poses=poses, fit=f) for f in ("lsq", "hat"))
     assert error(lsq) < 0.995 * error(hat)
     assert np.abs(lsq.W - hat.W).max() > 0.01
     np.testing.assert_allclose(lsq.W.sum(axis=1), 1.0, atol=1e-12)
@@ -182,7 +183,7 @@ def test_least_squares_beat_hat_weights_on_their_own_poses():
 
 def test_clips_become_rigid_clips_of_the_helper_poses(bar_rig):
     sk = bar_rig.skeleton
-    helper = helper_joints(bar_rig, k=3, n_poses=4)
+    helper = helper_joints(bar_rig, k=2, n_poses=4)
     clip = stbs.Clip([(0.0, stbs.Pose.rest(sk)),
                       (0.5, bent_pose(sk, 1, stretch=[1.5, 1.0], twist=[0, 0, np.pi])),
                       (1.3, bent_pose(sk, 2, stretch=[0.8, 1.3], twist=[0, -2.0, 1.0]))],
@@ -208,7 +209,7 @@ def test_a_2d_rig_gets_helpers_too():
     sk = stbs.Skeleton([[0, 0], [2, 0], [3, 0.0]], [[0, 1], [1, 2]])
     W = np.array([[1, 0], [0.5, 0.5], [0, 1.0]])
     E = stbs.weights.projection(V, sk)
-    helper = helper_joints(V, sk, W, E, k=3, fit="hat", method="stbs-lbs")
+    helper = helper_joints(V, sk, W, E, k=2, fit="hat", method="stbs-lbs")
     pose = stbs.forward_kinematics(sk, rotations=[0.4, -0.7], stretch=[1.5, 0.5])
     np.testing.assert_allclose(helper.deform(pose),
                                stbs.deform(V, sk, pose, W, E, method="stbs-lbs"), atol=1e-13)
@@ -253,19 +254,19 @@ def test_the_twisted_and_stretched_arm_plays_within_the_chord_bound(arm, method)
     U = stbs.deform(rig.V, rig.skeleton, pose, rig.W, rig.E, method=method)
     assert np.linalg.norm(U - rig.V, axis=1).max() > 0.1 * diagonal   # it does move
     r = forearm_radius(rig)
-    for k in (3, 4):
+    for k in (2, 3):
         helper = arm["k3"] if (k == 3 and method == "stbs-dqs") else helper_joints(
             rig, k=k, method=method)
         err = np.linalg.norm(helper.deform(pose) - U, axis=1) / diagonal
-        # helpers 180 / (k - 1) degrees apart: a vertex midway sinks by the chord's
-        # sagitta r (1 - cos(90 / (k - 1) degrees)); the fit gets close to it, not past
-        sag = r * (1 - np.cos(np.pi / (2 * (k - 1)))) / diagonal
+        # the bone's joint and k helpers, 180 / k degrees apart: a vertex midway sinks by
+        # the chord's sagitta r (1 - cos(90 / k degrees)); the fit gets close, not past
+        sag = r * (1 - np.cos(np.pi / (2 * k))) / diagonal
         assert 0.5 * sag < err.max() <= 1.02 * sag
         assert np.sqrt(np.mean(err ** 2)) < 0.25 * sag
-    assert err.max() < 0.01                     # k = 4: within 1 % of the diagonal
-    # the rigid pose of plain LBS on the helper bones, no twist helpers, is far worse
-    k1 = np.linalg.norm(helper_joints(rig, k=1).deform(pose) - U, axis=1) / diagonal
-    assert k1.max() > 0.05
+    assert err.max() < 0.01                     # k = 3: within 1 % of the diagonal
+    # the rigid pose of plain LBS on the bones alone, no twist helpers, is far worse
+    k0 = np.linalg.norm(helper_joints(rig, k=0).deform(pose) - U, axis=1) / diagonal
+    assert k0.max() > 0.05
 
 
 # --------------------------------------------------------------------------- glTF
@@ -370,8 +371,9 @@ def test_three_js_skinned_mesh_plays_the_glb_as_stbs_lbs(arm, arm_glb):
 # --------------------------------------------------------------------------- bad input
 def test_bad_input_is_refused_with_the_argument_named(bar_rig):
     V, sk, W, E = bar_rig.V, bar_rig.skeleton, bar_rig.W, bar_rig.E
-    with pytest.raises(ValueError, match=r"k must be >= 1 \(helpers per bone\), got 0"):
-        helper_joints(bar_rig, k=0)
+    with pytest.raises(ValueError, match=r"k must be >= 0 \(helper joints per bone, "
+                                         r"beside its own\), got -1"):
+        helper_joints(bar_rig, k=-1)
     with pytest.raises(TypeError, match="k must be an int"):
         helper_joints(bar_rig, k=2.0)
     with pytest.raises(TypeError, match="k must be an int"):
@@ -403,7 +405,7 @@ def test_bad_input_is_refused_with_the_argument_named(bar_rig):
         helper_joints(bar_rig, poses=[stbs.Pose.rest(other)])
     with pytest.raises(TypeError, match="poses must be a non-empty sequence of stbs.Pose"):
         helper_joints(bar_rig, poses=stbs.Pose.rest(sk))
-    helper = helper_joints(bar_rig, k=2, fit="hat", n_poses=2)
+    helper = helper_joints(bar_rig, k=1, fit="hat", n_poses=2)
     with pytest.raises(ValueError, match="pose must be a pose of the STBS skeleton"):
         helper.pose(stbs.Pose.rest(other))
     with pytest.raises(TypeError, match="pose must be a stbs.Pose, got Clip"):
