@@ -80,6 +80,11 @@ _NEWTON_STEPS = 40
 _GOLDEN_STEPS = 32
 #: Entries of (frames x vertices x bones x 4) held at once by the stbs-dqs solve.
 _DQS_CHUNK = 1 << 22
+#: Endpoint sweeps and joint Gauss-Newton steps per round of fit_weights.
+_INNER_SWEEPS = 3
+_JOINT_STEPS = 4
+#: Most joint pair searches of the stbs-dqs descent.
+_PAIR_ROUNDS = 2
 
 
 # ============================================================================ inputs
@@ -171,14 +176,19 @@ class _Rig:
         """Whether e_i has any effect: bone i stretches or twists non-uniformly."""
         return bool(np.any(self.k[:, i] != 0) or np.any(self.dt[:, i] != 0))
 
-    def bone_points(self, i: int, idx: np.ndarray, e: np.ndarray) -> np.ndarray:
-        """``x_i(e)`` (m, r, 3) of eq. 5 at the vertices ``idx`` with their e (r,)."""
+    def bone_points(self, i: int, idx: np.ndarray, e: np.ndarray, slope: bool = False):
+        """``x_i(e)`` (m, r, 3) of eq. 5 at the vertices ``idx`` with their e (r,), and
+        with ``slope`` its derivative in e, ``R_i (dtheta u x K q + k u)``, too."""
         u = self.U[i]
         q = self.P[idx] - self.A[i] + e[None, :, None] * (self.k[:, i, None, None] * u)
         phi = self.ta[:, i, None] + e[None, :] * self.dt[:, i, None]
         c, s = np.cos(phi)[..., None], np.sin(phi)[..., None]
         Kq = q * c + np.cross(u, q) * s + (q @ u)[..., None] * u * (1 - c)   # Rodrigues
-        return self.Ap[:, i, None, :] + np.einsum("fij,frj->fri", self.R[:, i], Kq)
+        x = self.Ap[:, i, None, :] + np.einsum("fij,frj->fri", self.R[:, i], Kq)
+        if not slope:
+            return x
+        dK = self.dt[:, i, None, None] * np.cross(u, Kq) + self.k[:, i, None, None] * u
+        return x, np.einsum("fij,frj->fri", self.R[:, i], dK)
 
     def predict(self, W: np.ndarray, E: np.ndarray) -> np.ndarray:
         """stbs-lbs positions (m, n, 3) of every frame."""
@@ -365,72 +375,121 @@ def _dq_points(cr: np.ndarray, cd: np.ndarray, P: np.ndarray) -> np.ndarray:
     return P + w0 * c + _cross(v0, c) + t
 
 
-class _DqsLine:
-    """The stbs-dqs residual of vertices ``c`` as a function of e_i alone (eq. 6):
-    the other bones' dual quaternions are computed once."""
+class _DqsResidual:
+    """The stbs-dqs residual of the vertices ``c`` (r,) as a function of the endpoint
+    weights of the bones ``vary`` alone (eq. 6); the other bones' dual quaternions are
+    computed once. Called with one (r,) array of e per bone in ``vary``."""
 
-    def __init__(self, rig: _Rig, i: int, c: np.ndarray, W: np.ndarray, E: np.ndarray):
+    def __init__(self, rig: _Rig, vary: Sequence[int], c: np.ndarray, W: np.ndarray,
+                 E: np.ndarray):
         m = rig.Y.shape[0]
         Wc = W[c]
         J = np.flatnonzero(np.any(Wc > 0, axis=0))
-        others = J[J != i]
-        self.rig, self.i = rig, i
+        others = J[~np.isin(J, vary)]
+        self.rig, self.vary = rig, list(vary)
         self.P = rig.P[c].T[:, None, :]                                   # (3, 1, r)
         self.Y = np.moveaxis(rig.Y[:, c], -1, 0)                          # (3, m, r)
-        self.wi = Wc[:, i]
-        self.wo = Wc[:, others].T[:, None, :]                             # (J-1, 1, r)
+        self.wv = [Wc[:, i] for i in self.vary]
+        self.wo = Wc[:, others].T[:, None, :]                             # (o, 1, r)
         self.QR = np.empty((4, others.size, m, c.size))
         self.QD = np.empty_like(self.QR)
         for jj, j in enumerate(others):
             self.QR[:, jj], self.QD[:, jj] = rig.bone_dq(j, E[c, j])
         # the pivot: the heaviest bone at the vertex (DESIGN §3), as the Deformer picks it
         piv = J[np.argmax(Wc[:, J], axis=1)]
-        self.pivot_is_i = piv == i
+        self.piv_vary = [piv == i for i in self.vary]
         jo = np.clip(np.searchsorted(others, piv), 0, max(others.size - 1, 0))
         self.qp = self.QR[:, jo, :, np.arange(c.size)].transpose(1, 2, 0) \
             if others.size else None                                        # (4, m, r)
 
-    def __call__(self, e: np.ndarray) -> np.ndarray:
-        qr, qd = self.rig.bone_dq(self.i, e)
-        qp = qr if self.qp is None else np.where(self.pivot_is_i, qr, self.qp)
+    def __call__(self, *es: np.ndarray) -> np.ndarray:
+        qs = [self.rig.bone_dq(i, e) for i, e in zip(self.vary, es, strict=True)]
+        qp = self.qp
+        for (qr, _), mine in zip(qs, self.piv_vary, strict=True):
+            qp = qr if qp is None else np.where(mine, qr, qp)
         so = np.where(np.einsum("kjfr,kfr->jfr", self.QR, qp) < 0, -1.0, 1.0) * self.wo
-        si = np.where(np.sum(qr * qp, axis=0) < 0, -1.0, 1.0) * self.wi
-        cr = np.einsum("jfr,kjfr->kfr", so, self.QR) + si * qr
-        cd = np.einsum("jfr,kjfr->kfr", so, self.QD) + si * qd
+        cr = np.einsum("jfr,kjfr->kfr", so, self.QR)
+        cd = np.einsum("jfr,kjfr->kfr", so, self.QD)
+        for (qr, qd), w in zip(qs, self.wv, strict=True):
+            si = np.where(np.sum(qr * qp, axis=0) < 0, -1.0, 1.0) * w
+            cr = cr + si * qr
+            cd = cd + si * qd
         return np.sum((_dq_points(cr, cd, self.P) - self.Y) ** 2, axis=(0, 1))
+
+
+def _chunks(rig: _Rig, idx: np.ndarray, b: int):
+    step = max(1, _DQS_CHUNK // (rig.Y.shape[0] * b * 4))
+    return (idx[s:s + step] for s in range(0, idx.size, step))
 
 
 def _dqs_step(rig: _Rig, i: int, idx, W, E, pred) -> float:
     """Update of e_i at the vertices ``idx`` on the stbs-dqs model (pred unused)."""
     grid = _grid(float(np.abs(rig.dt[:, i]).max()))
-    m, b = rig.Y.shape[0], W.shape[1]
-    step = max(1, _DQS_CHUNK // (m * b * 4))
     change = 0.0
-    for s in range(0, idx.size, step):
-        c = idx[s:s + step]
-        e_new = _minimise_sampled(_DqsLine(rig, i, c, W, E), E[c, i], grid)
+    for c in _chunks(rig, idx, W.shape[1]):
+        e_new = _minimise_sampled(_DqsResidual(rig, [i], c, W, E), E[c, i], grid)
         change = max(change, float(np.abs(W[c, i] * (e_new - E[c, i])).max(initial=0.0)))
         E[c, i] = e_new
     return change
 
 
+def _dqs_pairs(rig: _Rig, bones: list[int], W, E) -> int:
+    """Joint grid search over (e_i, e_j) for every pair of bones sharing vertices, to
+    leave minima of the coordinate descent that a pair of bones holds (the dual
+    quaternions' hemisphere flips make them common). Returns how many vertices moved."""
+    moved = np.zeros(W.shape[0], bool)
+    for i, j in ((i, j) for i in bones for j in bones if i < j):
+        idx = np.flatnonzero((W[:, i] > 0) & (W[:, j] > 0))
+        gi = _grid(float(np.abs(rig.dt[:, i]).max()))
+        gj = _grid(float(np.abs(rig.dt[:, j]).max()))
+        for c in _chunks(rig, idx, W.shape[1]):
+            f = _DqsResidual(rig, [i, j], c, W, E)
+            best = f(E[c, i], E[c, j])
+            bi, bj = E[c, i].copy(), E[c, j].copy()
+            for ei in gi:
+                for ej in gj:
+                    v = f(np.full(c.size, ei), np.full(c.size, ej))
+                    better = v < best * (1 - 1e-9)
+                    best = np.where(better, v, best)
+                    bi, bj = np.where(better, ei, bi), np.where(better, ej, bj)
+            moved[c] |= (bi != E[c, i]) | (bj != E[c, j])
+            E[c, i], E[c, j] = bi, bj
+    return int(moved.sum())
+
+
 def _descend(rig: _Rig, W, E, *, method, iterations, tol, rng, say) -> tuple[np.ndarray, int]:
-    """Block coordinate descent on E over the bones; returns E and the sweeps run."""
+    """Block coordinate descent on E over the bones; returns E and the sweeps run.
+
+    stbs-dqs: whenever the descent settles, a joint grid search over each pair of bones
+    (:func:`_dqs_pairs`) looks for a better minimum; the descent resumes from what it
+    finds, until it finds nothing (at most ``_PAIR_ROUNDS`` times).
+    """
     b = W.shape[1]
     bones = [i for i in range(b) if rig.active(i)]
     pred = rig.predict(W, E) if method == "stbs-lbs" else None
     step = _lbs_step if method == "stbs-lbs" else _dqs_step
     supports = {i: np.flatnonzero(W[:, i] > 0) for i in bones}
+    pair_rounds = _PAIR_ROUNDS if method == "stbs-dqs" else 0
     total = iterations * len(bones)
     say(0, total)
+    active = np.isin(np.arange(b), bones)
     for sweep in range(iterations):
         change = 0.0
         for t, i in enumerate(rng.permutation(bones)):
             if supports[i].size:
                 change = max(change, step(rig, int(i), supports[i], W, E, pred))
             say(sweep * len(bones) + t + 1, total)
+        if pred is not None and change > tol:
+            # Gauss-Newton polish on E (module docs): coordinate descent alone converges
+            # linearly where a vertex's bones are coupled
+            E_before = E.copy()
+            if _joint_step(rig, W, E, None, None, active, fix_w=True):
+                change = max(change, float(np.abs(W * (E - E_before)).max()))
+                pred[...] = rig.predict(W, E)
         if change <= tol:
-            return E, sweep + 1
+            if pair_rounds == 0 or _dqs_pairs(rig, bones, W, E) == 0:
+                return E, sweep + 1
+            pair_rounds -= 1
     return E, iterations
 
 
@@ -535,6 +594,72 @@ def _weights_step(rig: _Rig, E, k: int, prior, lam) -> np.ndarray:
     return simplex_qp(H, g, k=k)
 
 
+def _objective(rig: _Rig, c, W, E, prior, lam) -> np.ndarray:
+    """Data term (and smoothness term) of the vertices c (r,)."""
+    r = -rig.Y[:, c]
+    for i in range(W.shape[1]):
+        r = r + W[c, i, None] * rig.bone_points(i, c, E[c, i])
+    out = np.sum(r * r, axis=(0, 2))
+    if prior is not None:
+        out += lam[c] * np.sum((W[c] - prior[c]) ** 2, axis=1)
+    return out
+
+
+def _joint_step(rig: _Rig, W, E, prior, lam, active: np.ndarray, *,
+                fix_w: bool = False) -> int:
+    """One Gauss-Newton step on W and E together at every vertex, on the current
+    supports (w stays >= 0 and sums to 1, e is clamped to [0, 1]); kept only where it
+    lowers the vertex's objective. Alternating (a) and (b) converges linearly where the
+    two are coupled; this step converges fast once the supports are right. With
+    ``fix_w`` only E moves (the endpoint descent's polish). Updates W and E in place;
+    returns how many vertices improved."""
+    n, b = W.shape
+    m = rig.Y.shape[0]
+    step = max(1, _DQS_CHUNK // (m * 3 * 2 * b))
+    improved = 0
+    for s0 in range(0, n, step):
+        c = np.arange(s0, min(n, s0 + step))
+        X = np.empty((m, c.size, 2 * b, 3))
+        for i in range(b):
+            X[:, :, i], D = rig.bone_points(i, c, E[c, i], slope=True)
+            X[:, :, b + i] = W[c, i, None] * D
+        S = W[c] > 0
+        free = np.concatenate([S & (not fix_w), S & active], axis=1)
+        res = np.einsum("frbk,rb->frk", X[:, :, :b], W[c]) - rig.Y[:, c]
+        H = np.einsum("fjak,fjbk->jab", X, X)
+        g = -np.einsum("fjak,fjk->ja", X, res)
+        if prior is not None:
+            H[:, np.arange(b), np.arange(b)] += lam[c, None]
+            g[:, :b] -= lam[c, None] * (W[c] - prior[c])
+        M = np.zeros((c.size, 2 * b + 1, 2 * b + 1))
+        M[:, :2 * b, :2 * b] = np.where(free[:, :, None] & free[:, None, :], H, 0.0)
+        d = np.arange(2 * b)
+        M[:, d, d] += np.where(free, 1e-12 * np.abs(H[:, d, d]).max(axis=1, keepdims=True),
+                               1.0)
+        M[:, 2 * b, :b] = M[:, :b, 2 * b] = free[:, :b]                 # sum of dw = 0
+        M[:, 2 * b, 2 * b] = fix_w
+        rhs = np.concatenate([np.where(free, g, 0.0), np.zeros((c.size, 1))], axis=1)
+        delta = np.linalg.solve(M, rhs[..., None])[:, :2 * b, 0]
+        dw, de = delta[:, :b], delta[:, b:]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            reach = np.where(S & (dw < 0), W[c] / -dw, np.inf).min(axis=1)
+        before = _objective(rig, c, W, E, prior, lam)
+        for shrink in (1.0, 0.25):
+            a = (np.minimum(1.0, reach) * shrink)[:, None]
+            Wt, Et = W.copy(), E.copy()
+            Wt[c] = np.where(S, np.maximum(W[c] + a * dw, 0.0), 0.0)
+            Wt[c] /= Wt[c].sum(axis=1, keepdims=True)
+            Et[c] = np.clip(E[c] + a * de, 0.0, 1.0)
+            better = _objective(rig, c, Wt, Et, prior, lam) < before
+            W[c[better]], E[c[better]] = Wt[c[better]], Et[c[better]]
+            improved += int(better.sum())
+            c, before = c[~better], before[~better]
+            S, dw, de, reach = S[~better], dw[~better], de[~better], reach[~better]
+            if c.size == 0:
+                break
+    return improved
+
+
 def fit_weights(V, sk: Skeleton, poses: Sequence[Pose], frames, *, F=None,
                 max_influences: int | None = 4, smoothness: float = 1e-3,
                 method: Literal["stbs-lbs"] = "stbs-lbs", E0=None, iterations: int = 30,
@@ -610,15 +735,18 @@ def fit_weights(V, sk: Skeleton, poses: Sequence[Pose], frames, *, F=None,
     inner = _reporter(progress, "endpoint weights")
     W = None
     say(0, iterations)
+    active = np.array([rig.active(i) for i in range(b)])
     for it in range(iterations):
         prior = avg @ W if (W is not None and avg is not None and smoothness > 0) else None
-        W_new = _weights_step(rig, E, k, prior, lam)
-        E_old = E.copy()
-        E, _ = _descend(rig, W_new, E, method=method, iterations=5, tol=tol, rng=rng,
+        W_old, E_old = W, E.copy()
+        W = _weights_step(rig, E, k, prior, lam)
+        E, _ = _descend(rig, W, E, method=method, iterations=_INNER_SWEEPS, tol=tol, rng=rng,
                         say=inner)
-        dW = np.inf if W is None else float(np.abs(W_new - W).max())
-        W = W_new
+        for _ in range(_JOINT_STEPS):
+            if _joint_step(rig, W, E, prior, lam, active) == 0:
+                break
         say(it + 1, iterations)
-        if dW <= tol and float(np.abs(W * (E - E_old)).max()) <= tol:
+        if W_old is not None and float(np.abs(W - W_old).max()) <= tol \
+                and float(np.abs(W * (E - E_old)).max()) <= tol:
             break
     return W, np.clip(E, 0.0, 1.0)
