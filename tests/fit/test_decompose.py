@@ -223,13 +223,16 @@ def test_bench_fit_runs_both_methods_and_measures_them_alike(chain, tmp_path):
     V, F, Y = chain
     np.savez(tmp_path / bench.FILE, rest=V, frames=Y, F=F)
     lines: list[str] = []
-    doc = bench.run((3,), iterations=4, out=lines.append, data=tmp_path)
+    doc = bench.run((3,), iterations=4, peer_iterations=4, out=lines.append, data=tmp_path)
     rows = {r["method"].split()[0]: r for r in doc["rows"]}
-    assert set(rows) == {"STBS-SSDR", "Dem"} and all(r["bones"] == 3 for r in rows.values())
+    assert set(rows) == {"STBS-SSDR", "ours,", "Dem"}
+    assert all(r["bones"] == 3 for r in rows.values())
     diag = np.linalg.norm(V.max(0) - V.min(0))
     ours = decompose(V, Y, 3, F=F, iterations=4, seed=0)
     assert rows["STBS-SSDR"]["rmse"] == pytest.approx(ours.rmse, rel=1e-9)
     assert rows["STBS-SSDR"]["percent"] == pytest.approx(100 * ours.rmse / diag)
+    rigid = decompose(V, Y, 3, F=F, iterations=4, seed=0, method="lbs")
+    assert rows["ours,"]["rmse"] == pytest.approx(rigid.rmse, rel=1e-9)
     # the peer's error by hand from its own weights and transforms
     from py_dem_bones import solve_skinning
     res = solve_skinning(V, Y, 3, faces=F, max_influences=4, iterations=4)
@@ -239,7 +242,7 @@ def test_bench_fit_runs_both_methods_and_measures_them_alike(chain, tmp_path):
     text = "\n".join(lines)
     assert "STBS-SSDR (stbs-lbs)" in text and "Dem Bones (lbs)" in text
     assert f"{rows['STBS-SSDR']['percent']:.3f}" in text
-    assert "3 bones: STBS-SSDR's RMSE is" in text
+    assert "3 bones: STBS-SSDR's RMSE is" in text and "(our rigid bones: " in text
 
 
 def test_bench_fit_data_is_found_or_named(tmp_path, monkeypatch):
