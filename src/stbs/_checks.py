@@ -146,3 +146,10 @@ def bone_list(bones, b: int) -> list[int]:
     if todo and (todo[0] < 0 or todo[-1] >= b):
         raise ValueError(f"bones must hold bone indices in 0..{b - 1}, got {list(bones)!r}")
     return todo
+
+
+def progress(callback: Any, form: str = "progress(done, total)") -> None:
+    """A ``TypeError`` unless a progress ``callback`` is None or callable."""
+    if callback is not None and not callable(callback):
+        raise TypeError(f"progress must be callable as {form} or None, "
+                        f"got {type(callback).__name__}")

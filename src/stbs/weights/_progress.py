@@ -14,6 +14,8 @@ import threading
 from collections.abc import Callable, Iterable
 from concurrent.futures import Future, as_completed
 
+from .. import _checks
+
 __all__ = ["Guard", "Cancelled", "check_callable"]
 
 
@@ -22,10 +24,8 @@ class Cancelled(Exception):
 
 
 def check_callable(progress, form: str = "progress(done, total)") -> None:
-    """A ``TypeError`` unless ``progress`` is None or callable."""
-    if progress is not None and not callable(progress):
-        raise TypeError(f"progress must be callable as {form} or None, "
-                        f"got {type(progress).__name__}")
+    """A ``TypeError`` unless ``progress`` is None or callable (:func:`stbs._checks.progress`)."""
+    _checks.progress(progress, form)
 
 
 class Guard:
