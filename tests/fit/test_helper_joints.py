@@ -416,3 +416,18 @@ def test_bad_input_is_refused_with_the_argument_named(bar_rig):
     with pytest.raises(ValueError, match="helper bone name 'upper_twist_1' is also a "
                                          "bone's name"):
         helper_skeleton(clash, 2)
+
+
+def test_progress_reports_every_fitting_pose_and_a_raise_cancels(bar_rig):
+    seen = []
+    helper_joints(bar_rig, k=2, n_poses=3, progress=lambda *a: seen.append(a))
+    assert seen[:4] == [("fitting poses", q, 3) for q in range(4)]
+    assert seen[-2:] == [("least squares", 0, 1), ("least squares", 1, 1)]
+
+    def stop(stage, done, total):
+        if done == 1:
+            raise KeyboardInterrupt
+    with pytest.raises(KeyboardInterrupt):
+        helper_joints(bar_rig, k=2, n_poses=3, progress=stop)
+    with pytest.raises(TypeError, match="progress must be callable"):
+        helper_joints(bar_rig, k=2, progress=3)

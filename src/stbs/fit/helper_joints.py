@@ -444,7 +444,7 @@ def _pose_arrays(sk: Skeleton, poses) -> tuple[np.ndarray, ...]:
 
 
 def _fit(V, sk: Skeleton, W, E, slots: _Slots, k: int, method: str, arrays,
-         max_influences: int, lsq: bool) -> None:
+         max_influences: int, lsq: bool, say) -> None:
     """Allocate the slots from the costs over the sampled poses and, with ``lsq``, place
     each paired bone's share (``slots.hat`` becomes the fitted share on its upper
     helper) by least squares over them."""
@@ -466,15 +466,19 @@ def _fit(V, sk: Skeleton, W, E, slots: _Slots, k: int, method: str, arrays,
     n, m = slots.w.shape
     gain, drop = np.zeros((n, m)), np.zeros((n, m))
     w2 = slots.w ** 2
+    say("fitting poses", 0, len(targets))
     for q, Y in enumerate(targets):          # loops over poses, each vectorised
         Xlo, Xhi, Xnear = maps(q)
         exact = _bone_map(sk, R[q], O[q], sigma[q], theta[q], slots.bone, slots.e, V)
         hat = Xlo + slots.hat[..., None] * (Xhi - Xlo)
         gain += w2 * (np.sum((Xnear - exact) ** 2, -1) - np.sum((hat - exact) ** 2, -1))
         drop += w2 * np.sum((exact - Y[:, None, :]) ** 2, -1)
+        say("fitting poses", q + 1, len(targets))
     _allocate(slots, gain, drop, max_influences)
     if lsq:
+        say("least squares", 0, 1)
         _split(slots, ((Y, *maps(q)) for q, Y in enumerate(targets)))
+        say("least squares", 1, 1)
 
 
 def _split(slots: _Slots, cache) -> None:
@@ -548,7 +552,7 @@ def helper_joints(rig_or_V, sk: Skeleton | None = None, W=None, E=None, *, k: in
                   method: Literal["stbs-dqs", "stbs-lbs"] = "stbs-dqs",
                   fit: Literal["lsq", "hat"] = "lsq", max_influences: int = 4,
                   poses: Sequence[Pose] | None = None, n_poses: int = 16, seed: int = 0,
-                  F=None, T=None) -> HelperRig:
+                  F=None, T=None, progress=None) -> HelperRig:
     """Turn an STBS rig into plain LBS with ``k`` rigid helper joints per bone.
 
     Parameters
@@ -583,6 +587,9 @@ def helper_joints(rig_or_V, sk: Skeleton | None = None, W=None, E=None, *, k: in
         With ``V``: triangles (needed to write glTF).
     T : (t, 4) int, keyword-only, optional
         With ``V``: tetrahedra.
+    progress : callable, keyword-only, optional
+        ``progress(stage, done, total)``: stage ``"fitting poses"`` once per fitting pose,
+        then ``"least squares"`` (``fit="lsq"``); raising from it cancels.
 
     Returns
     -------
@@ -614,6 +621,8 @@ def helper_joints(rig_or_V, sk: Skeleton | None = None, W=None, E=None, *, k: in
     0.016
     """
     k = _count(k, "k", 0) + 1            # joints per bone from here on, its own included
+    _checks.progress(progress, "progress(stage, done, total)")
+    say = progress or (lambda stage, done, total: None)
     method = _checks.choice("method", method, METHODS)
     fit = _checks.choice("fit", fit, FITS)
     if isinstance(max_influences, bool) or max_influences not in (4, 8):
@@ -631,7 +640,7 @@ def helper_joints(rig_or_V, sk: Skeleton | None = None, W=None, E=None, *, k: in
     if k == 1:
         _allocate(slots, None, None, max_influences)
     else:
-        _fit(V, sk, W, E, slots, k, method, arrays, max_influences, fit == "lsq")
+        _fit(V, sk, W, E, slots, k, method, arrays, max_influences, fit == "lsq", say)
     Wh, Wb = _weights(slots, sk.n_bones * k, sk.n_bones)
     return HelperRig(V=V, F=F, T=T, source=sk, k=k - 1, W=Wh, bone_weights=Wb, method=method,
                      fit=fit, max_influences=max_influences)
