@@ -195,12 +195,16 @@ def test_stbs_dqs_recovers_E():
 # ---------------------------------------------------------------------------- W and E
 def test_fit_weights_recovers_W_and_E(tube_rig):
     V, F, sk, W, E, poses, frames = tube_rig
-    Wfit, Efit = fit_weights(V, sk, poses, frames, F=F, smoothness=0.0, max_influences=2)
+    Wfit, Efit = fit_weights(V, sk, poses, frames, F=F, smoothness=0.0, max_influences=2,
+                             iterations=6)
     assert Wfit.shape == W.shape and Wfit.min() >= 0
     np.testing.assert_allclose(Wfit.sum(axis=1), 1.0, atol=1e-12)
     assert np.count_nonzero(Wfit, axis=1).max() <= 2
     assert np.abs(Wfit - W).max() < 1e-2
     recovered(Efit, E, W, 1e-3)
+    # noise-free examples are fitted to rounding within a few rounds (the joint steps;
+    # alternating W and E alone is still ~1e-4 away after 6 rounds)
+    assert residual(V, sk, poses, frames, Wfit, Efit) < 1e-20 * np.sum(frames ** 2)
 
 
 def test_fit_weights_noisy_residual_and_smoothness(tube_rig):
@@ -248,9 +252,9 @@ def test_progress_reports_and_cancels(tube_rig):
     calls = []
     fit_endpoint_weights(V, sk, W, poses[:4], frames[:4], iterations=3,
                          progress=lambda *a: calls.append(a))
-    assert calls[0] == ("endpoint weights", 0, 9)
+    assert calls[0] == ("endpoint weights", 0, 0)
     assert [c[1] for c in calls] == list(range(len(calls)))
-    assert all(c[2] == 9 for c in calls)
+    assert len(calls) > 3 and all(c == ("endpoint weights", c[1], 9) for c in calls[1:])
 
     class Stop(Exception):
         pass

@@ -29,15 +29,33 @@ best of that root and the bracket's ends is kept. Each step is the exact minimis
 the residual over ``e_i`` in [0, 1] (up to rounding), never increases the residual,
 and is computed for all vertices of the bone at once.
 
-Block coordinate descent sweeps the bones (in a seeded random order per sweep) until
-no ``w_i e_i`` changes by more than ``tol``. The residual is not convex in E jointly, so the
-descent finds a local minimum; from projection endpoint weights and with a few
-frames that stretch and twist each bone it finds the true E of noise-free examples.
+Block coordinate descent sweeps the bones (in a seeded random order per sweep); after
+each sweep one Gauss-Newton step on all of a vertex's e together (kept only where it
+lowers that vertex's residual) speeds up vertices whose bones are coupled, where
+coordinate descent alone converges only linearly. It stops once a sweep changes no
+``w_i e_i`` by more than ``tol``. The residual is not convex in E jointly, so the
+descent finds a local minimum; from projection endpoint weights and with a few frames
+that stretch and twist each bone it finds the true E of noise-free examples.
 
 ``method="stbs-dqs"`` (eq. 6) uses the same descent on the dual-quaternion model: the
 1D residual is evaluated exactly (blend, normalise, apply) on the same grid and refined
-by golden-section search. It is a local method in each coordinate too: the grid must
-bracket the best minimum, which it does unless two minima lie within one grid interval.
+by golden-section search; whenever the descent settles, a joint grid search over each
+pair of bones sharing vertices looks for a better minimum and the descent resumes from
+it. It is a local method: where two bones at a vertex turn more than 180 degrees apart
+in some frame, a quaternion crosses its pivot's hemisphere as e moves, the residual
+jumps there, and the true E can lie in a narrow valley between such jumps that
+coordinate and grid moves miss. Below that (bends and twists that keep the bones within
+180 degrees of each other) the residual is smooth in E and noise-free E is recovered.
+
+Bone weights (fit_weights)
+--------------------------
+Each round solves (a) W given E exactly (stbs-lbs is linear in W; a k-sparse bounded
+least-squares problem per vertex, :func:`stbs.fit._lsq.simplex_qp`), then (b) E given W
+by a few sweeps of the descent above, then up to a few Gauss-Newton steps on W and E
+together on the current supports (w >= 0 and summing to one, e in [0, 1]; each kept
+only where it lowers the vertex's objective). Alternating (a) and (b) alone converges
+linearly where W and E are coupled; with the joint steps noise-free examples are fitted
+to rounding in a few rounds.
 
 Which entries are fitted
 ------------------------
@@ -48,9 +66,10 @@ by default projection endpoint weights, eq. 8), so the result stays a usable rig
 
 Progress and cancelling
 -----------------------
-``progress(stage, done, total)`` is called with ``(stage, 0, 0)`` when a stage starts
-and then once per bone update; raise any exception from it to cancel (it propagates
-unchanged and ``progress`` is not called again).
+``progress(stage, done, total)`` is called with ``(stage, 0, 0)`` when a stage starts,
+then with ``done`` of ``total`` once per bone update (stage ``"endpoint weights"``) or
+per round (stage ``"fit weights"``); raise any exception from it to cancel (it
+propagates unchanged and ``progress`` is not called again).
 """
 
 from __future__ import annotations
@@ -65,7 +84,6 @@ from .. import _checks
 from .. import transforms as tf
 from ..pose import Pose
 from ..skeleton import Skeleton
-from ..weights._progress import check_callable
 from ._lsq import simplex_qp
 
 __all__ = ["fit_endpoint_weights", "fit_weights", "FIT_METHODS", "Progress"]
@@ -78,8 +96,8 @@ _GRID_PER_RADIAN = 8 / (2 * np.pi)
 _GRID_MIN = 17
 _NEWTON_STEPS = 40
 _GOLDEN_STEPS = 32
-#: Entries of (frames x vertices x bones x 4) held at once by the stbs-dqs solve.
-_DQS_CHUNK = 1 << 22
+#: Entries of (frames x vertices x bones x 4 or 6) arrays held at once.
+_CHUNK = 1 << 22
 #: Endpoint sweeps and joint Gauss-Newton steps per round of fit_weights.
 _INNER_SWEEPS = 3
 _JOINT_STEPS = 4
@@ -418,7 +436,7 @@ class _DqsResidual:
 
 
 def _chunks(rig: _Rig, idx: np.ndarray, b: int):
-    step = max(1, _DQS_CHUNK // (rig.Y.shape[0] * b * 4))
+    step = max(1, _CHUNK // (rig.Y.shape[0] * b * 4))
     return (idx[s:s + step] for s in range(0, idx.size, step))
 
 
@@ -471,7 +489,7 @@ def _descend(rig: _Rig, W, E, *, method, iterations, tol, rng, say) -> tuple[np.
     supports = {i: np.flatnonzero(W[:, i] > 0) for i in bones}
     pair_rounds = _PAIR_ROUNDS if method == "stbs-dqs" else 0
     total = iterations * len(bones)
-    say(0, total)
+    say(0, 0)
     active = np.isin(np.arange(b), bones)
     for sweep in range(iterations):
         change = 0.0
@@ -551,7 +569,7 @@ def fit_endpoint_weights(V, sk: Skeleton, W, poses: Sequence[Pose], frames, *,
         unknown method.
     """
     method = _checks.choice("method", method, FIT_METHODS)
-    check_callable(progress, "progress(stage, done, total)")
+    _checks.progress(progress, "progress(stage, done, total)")
     V, Y, poses = _inputs(V, sk, poses, frames)
     n, b = V.shape[0], sk.n_bones
     W = _dense(_checks.bone_weights(W, n, b))
@@ -615,7 +633,7 @@ def _joint_step(rig: _Rig, W, E, prior, lam, active: np.ndarray, *,
     returns how many vertices improved."""
     n, b = W.shape
     m = rig.Y.shape[0]
-    step = max(1, _DQS_CHUNK // (m * 3 * 2 * b))
+    step = max(1, _CHUNK // (m * 3 * 2 * b))
     improved = 0
     for s0 in range(0, n, step):
         c = np.arange(s0, min(n, s0 + step))
@@ -718,7 +736,7 @@ def fit_weights(V, sk: Skeleton, poses: Sequence[Pose], frames, *, F=None,
         Endpoint weights in [0, 1].
     """
     method = _checks.choice("method", method, ("stbs-lbs",))
-    check_callable(progress, "progress(stage, done, total)")
+    _checks.progress(progress, "progress(stage, done, total)")
     V, Y, poses = _inputs(V, sk, poses, frames)
     n, b = V.shape[0], sk.n_bones
     k = None if max_influences is None else _positive_int("max_influences", max_influences)
@@ -734,7 +752,7 @@ def fit_weights(V, sk: Skeleton, poses: Sequence[Pose], frames, *, F=None,
     say = _reporter(progress, "fit weights")
     inner = _reporter(progress, "endpoint weights")
     W = None
-    say(0, iterations)
+    say(0, 0)
     active = np.array([rig.active(i) for i in range(b)])
     for it in range(iterations):
         prior = avg @ W if (W is not None and avg is not None and smoothness > 0) else None
