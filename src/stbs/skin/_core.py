@@ -256,51 +256,57 @@ def dqs(xp, bones: Bones, pose: PoseArrays, lay: Layout, batch: tuple):
     return F.output(dq_apply(r, d, P))
 
 
+def _complement(xp, u):
+    """Unit vectors v1, v2 (b, 3) completing the unit axes u (b, 3) to right-handed
+    orthonormal frames (u, v1, v2); the helper axis is x unless u is close to it."""
+    ex = xp.zeros_like(u) + xp.asarray([1.0, 0.0, 0.0], dtype=u.dtype)
+    ey = xp.zeros_like(u) + xp.asarray([0.0, 1.0, 0.0], dtype=u.dtype)
+    ref = xp.where(xp.abs(u[:, 0:1]) < 0.9, ex, ey)
+    v1 = xp.stack(vcross(_fields(u, 3), _fields(ref, 3)), axis=-1)
+    v1 = v1 / xp.sqrt(xp.sum(v1 * v1, axis=-1, keepdims=True))
+    v2 = xp.stack(vcross(_fields(u, 3), _fields(v1, 3)), axis=-1)
+    return v1, v2
+
+
 def stbs_lbs(xp, bones: Bones, pose: PoseArrays, lay: Layout, batch: tuple):
     """Eq. 5: ``sum_i w_i (a'_i + R_i K_i(e_i) (e_i s_i + p - a_i))``.
 
-    With ``x = p - a``, ``phi = theta_a + e (theta_b - theta_a)`` and s parallel to u:
-    ``a' + e R s + cos(phi) R x + sin(phi) R [u]x x + (1 - cos(phi)) (u . x) R u``.
+    In the bone's rest frame (u, v1, v2) the point ``x = p - a`` has coordinates
+    ``(x_u, x_1, x_2)``, fixed per vertex and slot; the twist by
+    ``phi = theta_a + e (theta_b - theta_a)`` turns ``(x_1, x_2)`` and the stretch moves
+    ``x_u`` by ``e (sigma - 1) l``, so the posed point is
+    ``a' + (x_u + e (sigma - 1) l) R u + (c x_1 - s x_2) R v1 + (s x_1 + c x_2) R v2``
+    with ``c, s = cos(phi), sin(phi)``: per vertex only two scalars per slot depend on the
+    twist, and no rotation is applied per vertex.
     """
     R = pose.matrices(xp)
     u = bones.u
-    Ru = xp.sum(R * u[:, None, :], axis=-1)
+    v1, v2 = _complement(xp, u)
     twist, stretch = pose.theta is not None, pose.sigma is not None
-    fields = [R[..., r, c] for r in range(3) for c in range(3)]
-    if twist:
-        # row r of R [u]x is (row r of R) x u
-        RXr = [vcross(tuple(R[..., r, c] for c in range(3)), _fields(u, 3)) for r in range(3)]
-        fields += [RXr[r][c] for r in range(3) for c in range(3)]
-    fields += list(_fields(pose.O, 3)) + list(_fields(bones.a, 3))
+    fields = list(_fields(pose.O, 3))
+    for v in (u, v1, v2):
+        fields += list(_fields(xp.sum(R * v[:, None, :], axis=-1), 3))      # R v
     if stretch:
-        fields += list(_fields(((pose.sigma - 1.0) * bones.ell)[..., None] * Ru, 3))
+        fields.append((pose.sigma - 1.0) * bones.ell)
     if twist:
         th = pose.theta
-        fields += list(_fields(Ru, 3)) + list(_fields(u, 3)) + [th[..., 0],
-                                                              th[..., 1] - th[..., 0]]
+        fields += [th[..., 0], th[..., 1] - th[..., 0]]
     F = _Fields(xp, fields, batch, lay)
-    P = F.points()
     acc = None
-    for j in range(len(lay.idx)):
+    for j, ij in enumerate(lay.idx):
         f = F.slot(j)
+        x = lay.P - xp.take(bones.a, ij, axis=0)                            # (n, 3), rest
+        xu, x1, x2 = (F.vertex(xp.sum(x * xp.take(v, ij, axis=0), axis=-1))
+                      for v in (u, v1, v2))
         ej = F.vertex(lay.e[:, j])
-        o = 18 if twist else 9
-        x = tuple(P[i] - f[o + 3 + i] for i in range(3))
-        Rx = [f[3 * r] * x[0] + f[3 * r + 1] * x[1] + f[3 * r + 2] * x[2] for r in range(3)]
-        y = [f[o + i] for i in range(3)]
-        c = o + 6
         if stretch:
-            y = [y[i] + ej * f[c + i] for i in range(3)]
-            c += 3
+            xu = xu + ej * f[12]
         if twist:
-            RXx = [f[9 + 3 * r] * x[0] + f[10 + 3 * r] * x[1] + f[11 + 3 * r] * x[2]
-                   for r in range(3)]
-            phi = f[c + 6] + ej * f[c + 7]
+            k = 13 if stretch else 12
+            phi = f[k] + ej * f[k + 1]
             cs, sn = xp.cos(phi), xp.sin(phi)
-            ux = (1.0 - cs) * vdot(f[c + 3:c + 6], x)
-            y = [y[i] + cs * Rx[i] + sn * RXx[i] + ux * f[c + i] for i in range(3)]
-        else:
-            y = [y[i] + Rx[i] for i in range(3)]
+            x1, x2 = cs * x1 - sn * x2, sn * x1 + cs * x2
+        y = [f[i] + xu * f[3 + i] + x1 * f[6 + i] + x2 * f[9 + i] for i in range(3)]
         wj = F.vertex(lay.w[:, j])
         acc = [wj * v for v in y] if acc is None else [acc[i] + wj * y[i] for i in range(3)]
     return F.output(tuple(acc))
