@@ -1,5 +1,8 @@
 """stbs.skin against the compiled kernels (stbs.Deformer) on the shared real rigs."""
 
+import functools
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -20,9 +23,9 @@ RIGS = {  # mesh, skeleton, weights (relative to the shared data folder)
 N_SUB = 400
 
 
-@pytest.fixture(scope="module", params=sorted(RIGS))
-def rig(request, shared_data):
-    mesh, skel, weights = (shared_data / p for p in RIGS[request.param])
+@functools.cache
+def _load(name: str, data: str):
+    mesh, skel, weights = (Path(data) / p for p in RIGS[name])
     V = stbs.io.read_mesh(mesh).V
     sk = stbs.io.read_skeleton(skel)
     W = np.clip(stbs.io.read_dmat(weights), 0.0, None)
@@ -32,14 +35,13 @@ def rig(request, shared_data):
     W = W / W.sum(axis=1, keepdims=True)
     E = stbs.endpoint_weights(V, sk, method="projection")
     diag = float(np.linalg.norm(np.ptp(V, axis=0)))
-    return request.param, V, sk, W, E, diag, rng
+    return name, V, sk, W, E, diag
 
 
-@pytest.mark.parametrize("dtype, rel", [(np.float64, 1e-6), (np.float32, 1e-4)])
-def test_equals_the_kernels_on_real_rigs(rig, backend, dtype, rel):
-    name, V, sk, W, E, diag, rng = rig
-    if backend == "jax" and dtype == np.float32:
-        pytest.skip("JAX runs float64 here (jitted); float32 is covered on NumPy and PyTorch")
+def _check(rig, backend, dtype, rel):
+    """Every method, random poses with stretch and twists past 360 degrees."""
+    name, V, sk, W, E, diag = rig
+    pytest.importorskip(backend)
     R, O, S, T = pose_stack(np.random.default_rng(3), sk, 3)
     if sk.dim == 3:
         assert np.abs(T).max() > 2 * np.pi          # twists past a full turn are covered
@@ -63,8 +65,27 @@ def test_equals_the_kernels_on_real_rigs(rig, backend, dtype, rel):
             assert err <= rel, f"{name} {method} {backend} {dtype.__name__}: {err:.3g}"
 
 
+@pytest.mark.parametrize("name", sorted(RIGS))
+@pytest.mark.parametrize("backend, dtype, rel", [
+    ("numpy", np.float64, 1e-6), ("numpy", np.float32, 1e-4), ("torch", np.float64, 1e-6),
+    ("torch", np.float32, 1e-4)])
+def test_equals_the_kernels_on_real_rigs(shared_data, name, backend, dtype, rel):
+    _check(_load(name, str(shared_data)), backend, dtype, rel)
+
+
+@pytest.mark.slow       # four XLA compiles per rig
+@pytest.mark.parametrize("name", sorted(RIGS))
+def test_jax_jit_equals_the_kernels_on_real_rigs(shared_data, name):
+    _check(_load(name, str(shared_data)), "jax", np.float64, 1e-6)
+
+
+@pytest.fixture(scope="module", params=sorted(RIGS))
+def rig(request, shared_data):
+    return _load(request.param, str(shared_data))
+
+
 def test_numpy_skinner_runs_the_kernels(rig):
-    name, V, sk, W, E, diag, _ = rig
+    name, V, sk, W, E, diag = rig
     R, O, S, T = pose_stack(np.random.default_rng(4), sk, 2)
     for method in ("lbs", "stbs-dqs"):
         skinner = Skinner(V, sk, W, E, method=method)
