@@ -134,7 +134,10 @@ def asarray(xp: ModuleType, x: Any, dtype=None, device=None):
         return x
     if not isinstance(x, np.ndarray) and array_api_compat.is_array_api_obj(x):
         x = to_numpy(x)
-    return xp.asarray(np.asarray(x), dtype=dtype, device=device)
+    x = np.asarray(x)
+    if not x.flags.writeable:       # PyTorch warns about sharing read-only memory
+        x = x.copy()
+    return xp.asarray(x, dtype=dtype, device=device)
 
 
 def broadcast_batch(name_shapes: list[tuple[str, tuple]]) -> tuple:
