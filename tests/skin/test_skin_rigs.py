@@ -38,9 +38,14 @@ def _load(name: str, data: str):
     return name, V, sk, W, E, diag
 
 
-def _check(rig, backend, dtype, rel):
+def _check(rig, backend, dtype, rel, four=False):
     """Every method, random poses with stretch and twists past 360 degrees."""
     name, V, sk, W, E, diag = rig
+    if four:      # the four heaviest bones per vertex, the same weights on both sides
+        I4, W4, _ = stbs.skinning.four_heaviest(W)
+        W = np.zeros_like(W)
+        for s in range(4):    # added: an empty slot names bone 0 with weight 0
+            W[np.arange(len(W)), I4[:, s]] += W4[:, s]
     pytest.importorskip(backend)
     R, O, S, T = pose_stack(np.random.default_rng(3), sk, 3)
     if sk.dim == 3:
@@ -76,7 +81,8 @@ def test_equals_the_kernels_on_real_rigs(shared_data, name, backend, dtype, rel)
 @pytest.mark.slow       # four XLA compiles per rig
 @pytest.mark.parametrize("name", sorted(RIGS))
 def test_jax_jit_equals_the_kernels_on_real_rigs(shared_data, name):
-    _check(_load(name, str(shared_data)), "jax", np.float64, 1e-6)
+    # four bones per vertex: XLA's compile time grows with the slot count
+    _check(_load(name, str(shared_data)), "jax", np.float64, 1e-6, four=True)
 
 
 @pytest.fixture(scope="module", params=sorted(RIGS))

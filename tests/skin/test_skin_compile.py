@@ -1,0 +1,98 @@
+"""stbs.skin under torch.compile(fullgraph=True) and jax.jit, and JAX gradients."""
+
+import numpy as np
+import pytest
+
+import stbs
+from conftest import pose_stack
+from rigs import random_rig, random_weights
+from stbs.skin import Skinner
+from stbs.skinning.reference import reference_deform
+
+torch = pytest.importorskip("torch")
+
+
+def _case(d=3, seed=11):
+    """A small rig with two bones per vertex: tracing cost grows with the slot count."""
+    rng, sk, V, _, _ = random_rig(seed, d, n=40, b=5)
+    W, E = random_weights(rng, len(V), sk.n_bones, k=2)
+    R, O, S, T = pose_stack(rng, sk, 2)
+    return sk, V, W, E, R, O, S, T
+
+
+def _ref(V, sk, W, E, method, R, O, S, T):
+    return np.stack([reference_deform(V, stbs.Pose(sk, rotations=R[i], origins=O[i],
+                                                   stretch=S[i], twist=T[i]), W, E, method)
+                     for i in range(len(R))])
+
+
+@pytest.mark.parametrize("method", stbs.METHODS)
+def test_torch_compile_fullgraph_aot_eager(method):
+    """No graph breaks (fullgraph), and autograd traced through (aot_eager)."""
+    import torch._dynamo
+
+    sk, V, W, E, R, O, S, T = _case()
+    skinner = Skinner(V, sk, W, E, method=method, backend="torch")
+    torch._dynamo.reset()
+    fn = torch.compile(lambda R, O, S, T: skinner(rotations=R, origins=O, stretch=S,
+                                                  twist=T), fullgraph=True,
+                       backend="aot_eager")
+    args = [torch.tensor(x, requires_grad=True) for x in (R, O, S, T)]
+    U = fn(*args)
+    np.testing.assert_allclose(U.detach().numpy(), _ref(V, sk, W, E, method, R, O, S, T),
+                               atol=1e-10)
+    U.square().sum().backward()
+    eager = [torch.tensor(x, requires_grad=True) for x in (R, O, S, T)]
+    skinner(rotations=eager[0], origins=eager[1], stretch=eager[2],
+            twist=eager[3]).square().sum().backward()
+    for a, b in zip(args, eager, strict=True):
+        assert (a.grad is None) == (b.grad is None)   # lbs and dqs have no twist
+        if a.grad is not None:
+            np.testing.assert_allclose(a.grad.numpy(), b.grad.numpy(), atol=1e-9)
+
+
+@pytest.mark.slow
+def test_torch_compile_inductor_stbs_dqs():
+    import torch._dynamo
+
+    sk, V, W, E, R, O, S, T = _case()
+    skinner = Skinner(V.astype(np.float32), sk, W, E, method="stbs-dqs", backend="torch")
+    torch._dynamo.reset()
+    fn = torch.compile(lambda R, O, S, T: skinner(rotations=R, origins=O, stretch=S,
+                                                  twist=T), fullgraph=True)
+    args = [torch.tensor(x, dtype=torch.float32) for x in (R, O, S, T)]
+    np.testing.assert_allclose(fn(*args).numpy(), skinner(*args[:3], twist=args[3]).numpy(),
+                               atol=1e-5)
+
+
+@pytest.mark.parametrize("d", [pytest.param(3, marks=pytest.mark.slow), 2])
+def test_jax_jit_equals_eager_and_grad_agrees_with_torch(d):
+    jax = pytest.importorskip("jax")
+    import jax.numpy as jnp
+
+    sk, V, W, E, R, O, S, T = _case(d)
+    with jax.enable_x64(True):
+        for method in (stbs.METHODS if d == 3 else ("lbs", "stbs-dqs")):
+            sj = Skinner(V, sk, W, E, method=method, backend="jax")
+            st = Skinner(V, sk, W, E, method=method, backend="torch")
+
+            def loss(R, O, S, T, sj=sj):
+                return jnp.sum(sj(rotations=R, origins=O, stretch=S, twist=T) ** 2)
+
+            args = [jnp.asarray(x) for x in (R, O, S)] + ([jnp.asarray(T)] if d == 3 else [])
+            if d == 2:
+                args.append(None)
+            jitted = jax.jit(lambda *a, sj=sj: sj(rotations=a[0], origins=a[1], stretch=a[2],
+                                                  twist=a[3] if len(a) > 3 else None))
+            U = np.asarray(jitted(*[a for a in args if a is not None]))
+            np.testing.assert_allclose(U, _ref(V, sk, W, E, method, R, O, S, T), atol=1e-10)
+            if method != "stbs-dqs":      # one gradient compile per dimension
+                continue
+            argnums = (0, 1, 2, 3) if d == 3 else (0, 1, 2)
+            gj = jax.jit(jax.grad(loss, argnums=argnums))(*args)
+            tt = [torch.tensor(x, requires_grad=True) for x in (R, O, S, T)]
+            st(rotations=tt[0], origins=tt[1], stretch=tt[2],
+               twist=tt[3] if d == 3 else None).square().sum().backward()
+            for a, b in zip(gj, tt, strict=False):
+                tg = np.zeros(b.shape) if b.grad is None else b.grad.numpy()
+                np.testing.assert_allclose(np.asarray(a), tg, atol=1e-8, err_msg=method)
