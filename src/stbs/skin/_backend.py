@@ -164,3 +164,9 @@ def broadcast_batch(name_shapes: list[tuple[str, tuple]]) -> tuple:
 
 def prod(shape) -> int:
     return math.prod(shape)
+
+
+def index(xp: ModuleType, x, like):
+    """Integer index array (int64) on ``like``'s device, from a (possibly read-only)
+    NumPy array."""
+    return xp.asarray(np.array(x, dtype=np.int64), device=array_api_compat.device(like))

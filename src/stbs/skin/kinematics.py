@@ -78,7 +78,8 @@ def rest_joints(sk, lengths, *, C=None, backend=None):
     if tuple(C0.shape) != sk.C.shape:
         raise ValueError(f"C must have shape {sk.C.shape}, got {tuple(C0.shape)}")
     BE, par = sk.BE, sk.parents
-    vec = xp.take(C0, xp.asarray(BE[:, 1]), axis=0) - xp.take(C0, xp.asarray(BE[:, 0]), axis=0)
+    vec = xp.take(C0, bk.index(xp, BE[:, 1], C0), axis=0) - xp.take(
+        C0, bk.index(xp, BE[:, 0], C0), axis=0)
     u = vec / xp.sqrt(xp.sum(vec * vec, axis=-1, keepdims=True))
     joint = {}
     for level in sk.levels():
@@ -209,8 +210,8 @@ def _fk(xp, sk, C0, L, sigma, tau, D, per_bone, batch, dtype):
         if D is not None:
             D = xp.concat([D, xp.zeros_like(D[..., :1])], axis=-1)
     BE = sk.BE
-    A = xp.take(C0, xp.asarray(BE[:, 0]), axis=0)
-    vec = xp.take(C0, xp.asarray(BE[:, 1]), axis=0) - A
+    A = xp.take(C0, bk.index(xp, BE[:, 0], C0), axis=0)
+    vec = xp.take(C0, bk.index(xp, BE[:, 1], C0), axis=0) - A
     u = vec / xp.sqrt(xp.sum(vec * vec, axis=-1, keepdims=True))
     eye = xp.eye(3, dtype=dtype, device=array_api_compat.device(C0))
     theta = None
@@ -219,9 +220,10 @@ def _fk(xp, sk, C0, L, sigma, tau, D, per_bone, batch, dtype):
         ends = np.zeros(sk.n_joints, dtype=bool)
         ends[BE[:, 1]] = True
         free = ~ends[BE[:, 0]]
-        ta = xp.where(xp.asarray(free), xp.take(tau, xp.asarray(BE[:, 0]), axis=-1),
+        ta = xp.where(xp.asarray(free, device=array_api_compat.device(tau)),
+                      xp.take(tau, bk.index(xp, BE[:, 0], tau), axis=-1),
                       xp.zeros_like(tau[..., :1]))
-        theta = xp.stack([ta, ta + xp.take(tau, xp.asarray(BE[:, 1]), axis=-1)], axis=-1)
+        theta = xp.stack([ta, ta + xp.take(tau, bk.index(xp, BE[:, 1], tau), axis=-1)], axis=-1)
         theta = xp.broadcast_to(theta, batch + (b, 2))
     Rs, Os = [None] * b, [None] * b
     for level in sk.levels():

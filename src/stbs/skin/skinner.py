@@ -181,8 +181,8 @@ class Skinner:
         if d == 2:
             C = embed_points(xp, C)
         self._A = bk.asarray(xp, sk.A, dtype=dt, device=dev)
-        self._bones = _core.Bones(xp, xp.take(C, xp.asarray(sk.BE[:, 0], device=dev), axis=0),
-                                  xp.take(C, xp.asarray(sk.BE[:, 1], device=dev), axis=0))
+        self._bones = _core.Bones(xp, xp.take(C, bk.index(xp, sk.BE[:, 0], C), axis=0),
+                                  xp.take(C, bk.index(xp, sk.BE[:, 1], C), axis=0))
         self._lay = _core.Layout(xp, self._P, self._idx, self._w, self._e, b)
         self._deformer = None
 
@@ -316,8 +316,8 @@ def skin(V, C, BE, W, E, rotations=None, origins=None, stretch=None, twist=None,
         V3, C3 = embed_points(xp, V), embed_points(xp, C)
     else:
         V3, C3 = V, C
-    bones = _core.Bones(xp, xp.take(C3, xp.asarray(BE[:, 0], device=dev), axis=0),
-                        xp.take(C3, xp.asarray(BE[:, 1], device=dev), axis=0))
+    bones = _core.Bones(xp, xp.take(C3, bk.index(xp, BE[:, 0], C3), axis=0),
+                        xp.take(C3, bk.index(xp, BE[:, 1], C3), axis=0))
     Ed = None
     if method.startswith("stbs"):
         if E is None:
