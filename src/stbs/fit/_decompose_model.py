@@ -24,8 +24,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-#: Stretches are kept in this range (posed length / rest length).
-SIGMA_RANGE = (0.05, 20.0)
+#: Stretches are kept in this range (posed length / rest length): a bone whose vertices
+#: barely feel its stretch would otherwise collapse or grow without bound.
+SIGMA_RANGE = (0.25, 4.0)
+#: Largest twist difference along one bone, |theta_b - theta_a| (a half turn each way).
+TWIST_SPAN = np.pi
 #: Candidate endpoint weights tried per vertex in the E step (plus the current one).
 E_GRID = 21
 
@@ -160,6 +163,9 @@ def _fit_twist(c, s, w, e, th_old):
     safe = np.where(ok, det, 1.0)
     alpha = np.where(ok, (s2r * t0 - s1 * t1r) / safe, t0 / np.maximum(s0, 1e-300))
     beta = np.where(ok, (s0 * t1r - s1 * t0) / safe, beta_old)
+    clipped = np.clip(beta, -TWIST_SPAN, TWIST_SPAN)
+    alpha = alpha + (beta - clipped) * (s1 / np.maximum(s0, 1e-300))   # best alpha for it
+    beta = clipped
     turn = alpha + 0.5 * beta
     return np.stack([-0.5 * beta, 0.5 * beta], axis=1), turn
 
