@@ -84,7 +84,11 @@ def test_jax_jit_equals_eager_and_grad_agrees_with_torch(d):
                 args.append(None)
             jitted = jax.jit(lambda *a, sj=sj: sj(rotations=a[0], origins=a[1], stretch=a[2],
                                                   twist=a[3] if len(a) > 3 else None))
-            U = np.asarray(jitted(*[a for a in args if a is not None]))
+            # two batch axes (1, 2) on rotations and origins, stretch broadcast over them
+            given = [a for a in args if a is not None]
+            U = np.asarray(jitted(given[0][None], given[1][None], *given[2:]))
+            assert U.shape == (1, 2) + V.shape
+            U = U[0]
             np.testing.assert_allclose(U, _ref(V, sk, W, E, method, R, O, S, T), atol=1e-10)
             if method != "stbs-dqs":      # one gradient compile per dimension
                 continue

@@ -129,9 +129,18 @@ class Layout:
     """Per-vertex slots: ``idx`` k (n,) bone-index arrays (slot 0 the heaviest), weights
     ``w`` and endpoint weights ``e`` (n, k) (e None for lbs, dqs), rest points P (n, 3)."""
 
-    def __init__(self, xp, P, idx, w, e, b: int, W=None):
+    def __init__(self, xp, P, idx, w, e, b: int, W=None, cache: bool = False):
         self.xp, self.P, self.idx, self.w, self.e, self.b = xp, P, idx, w, e, b
         self.W = W
+        self._X = self.affine_rows() if cache else None
+
+    def affine_rows(self):
+        """X = [W p_x | W p_y | W p_z | W] (n, 4b): the linear blends are ``X @ table``."""
+        if getattr(self, "_X", None) is not None:
+            return self._X
+        xp, P = self.xp, self.P
+        Wd = self.dense_weights()
+        return xp.concat([Wd * P[:, 0:1], Wd * P[:, 1:2], Wd * P[:, 2:3], Wd], axis=1)
 
     def dense_weights(self):
         """(n, b) weights scattered from the slots (differentiable in ``w``)."""
@@ -188,9 +197,7 @@ def _affine_blend(xp, lay: Layout, M, t, batch: tuple):
 
     M (*B, b, 3, 3) and t (*B, b, 3); X = [W p_x | W p_y | W p_z | W] (n, 4b).
     """
-    Wd = lay.dense_weights()
-    P = lay.P
-    X = xp.concat([Wd * P[:, 0:1], Wd * P[:, 1:2], Wd * P[:, 2:3], Wd], axis=1)
+    X = lay.affine_rows()
     # rows c*b + i hold M_i[:, c] (the column multiplying p_c), rows 3b + i hold t_i
     T = xp.concat([M[..., :, :, 0], M[..., :, :, 1], M[..., :, :, 2], t], axis=-2)
     nb = len(batch)

@@ -183,7 +183,12 @@ class Skinner:
         self._A = bk.asarray(xp, sk.A, dtype=dt, device=dev)
         self._bones = _core.Bones(xp, xp.take(C, bk.index(xp, sk.BE[:, 0], C), axis=0),
                                   xp.take(C, bk.index(xp, sk.BE[:, 1], C), axis=0))
-        self._lay = _core.Layout(xp, self._P, self._idx, self._w, self._e, b)
+        # the linear blends' (n, 4b) rows are built once unless V or W carry a gradient
+        # tape (PyTorch), which must be recorded anew in every call
+        taped = any(bool(getattr(x, "requires_grad", False)) for x in (self._P, self._w))
+        linear = self.method == "lbs" or self.method == "dqs"
+        self._lay = _core.Layout(xp, self._P, self._idx, self._w, self._e, b,
+                                 cache=linear and not taped and not self.uses_kernels)
         self._deformer = None
 
     @property
