@@ -196,3 +196,19 @@ def test_importing_stbs_skin_loads_neither_torch_nor_jax():
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                          check=True)
     assert out.stdout.split() == ["False", "False"], out.stdout + out.stderr
+
+
+def test_max_influences_truncates_as_the_kernels_do():
+    torch = pytest.importorskip("torch")
+    rng, sk, V, W, E = random_rig(12, 3, n=30, b=5)
+    W = W + 0.05                           # every bone weighs every vertex
+    W /= W.sum(1, keepdims=True)
+    R, O, S, T = pose_stack(rng, sk, 2)
+    dfm = stbs.Deformer(V, sk, W, E, method="stbs-dqs", max_influences=2)
+    s = Skinner(V, sk, torch.tensor(W), E, method="stbs-dqs", max_influences=2)
+    assert s.k == 2
+    got = s(rotations=torch.tensor(R), origins=torch.tensor(O), stretch=torch.tensor(S),
+            twist=torch.tensor(T)).numpy()
+    for i in range(2):
+        want = dfm(stbs.Pose(sk, rotations=R[i], origins=O[i], stretch=S[i], twist=T[i]))
+        np.testing.assert_allclose(got[i], want, atol=1e-12)

@@ -149,7 +149,13 @@ class Skinner:
             else:
                 En = _checks.endpoint_weights(E if sp.issparse(E) else bk.to_numpy(E), n, b)
         self._numpy_inputs = (Vn, Wn, En, max_influences)
-        layout = top_k(Wn, En, max_influences=max_influences, dtype=np.float64)
+        if max_influences is None:
+            layout = top_k(Wn, En, dtype=np.float64)
+        else:       # truncated exactly as the kernels' Deformer truncates
+            from ..skinning import Deformer
+
+            layout = Deformer(Vn, sk, Wn, En if uses_e else None, method=self.method,
+                              dtype=np.float64, max_influences=max_influences).layout
         idx, w, e = _trim(layout)
         truncated = max_influences is not None and idx.shape[0] < int(
             np.max(np.count_nonzero(np.asarray(Wn.todense() if sp.issparse(Wn) else Wn) > 0,
