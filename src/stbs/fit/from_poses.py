@@ -196,17 +196,30 @@ class _Rig:
 
     def bone_points(self, i: int, idx: np.ndarray, e: np.ndarray, slope: bool = False):
         """``x_i(e)`` (m, r, 3) of eq. 5 at the vertices ``idx`` with their e (r,), and
-        with ``slope`` its derivative in e, ``R_i (dtheta u x K q + k u)``, too."""
+        with ``slope`` its derivative in e too.
+
+        With ``g = p - a_i`` split into its axial length ``g.u`` and the part ``g_perp``
+        across the axis, ``K(phi) (e s + g) = (g.u + e k) u + cos(phi) g_perp +
+        sin(phi) u x g_perp``, so ``x = a' + (g.u + e k) R u + cos(phi) R g_perp +
+        sin(phi) R (u x g_perp)`` and ``dx/de = k R u + dtheta (cos(phi) R (u x g_perp)
+        - sin(phi) R g_perp)``.
+        """
         u = self.U[i]
-        q = self.P[idx] - self.A[i] + e[None, :, None] * (self.k[:, i, None, None] * u)
+        g = self.P[idx] - self.A[i]
+        gu = g @ u
+        perp = g - gu[:, None] * u
+        Rt = np.swapaxes(self.R[:, i], 1, 2)                          # (m, 3, 3)
+        Rp = perp @ Rt                                                # (m, r, 3)
+        Rc = np.cross(u, perp) @ Rt
+        Ru = self.R[:, i] @ u                                         # (m, 3)
         phi = self.ta[:, i, None] + e[None, :] * self.dt[:, i, None]
         c, s = np.cos(phi)[..., None], np.sin(phi)[..., None]
-        Kq = q * c + np.cross(u, q) * s + (q @ u)[..., None] * u * (1 - c)   # Rodrigues
-        x = self.Ap[:, i, None, :] + np.einsum("fij,frj->fri", self.R[:, i], Kq)
+        k = self.k[:, i, None, None]
+        x = self.Ap[:, i, None, :] + (gu[None, :, None] + e[None, :, None] * k) \
+            * Ru[:, None, :] + c * Rp + s * Rc
         if not slope:
             return x
-        dK = self.dt[:, i, None, None] * np.cross(u, Kq) + self.k[:, i, None, None] * u
-        return x, np.einsum("fij,frj->fri", self.R[:, i], dK)
+        return x, k * Ru[:, None, :] + self.dt[:, i, None, None] * (c * Rc - s * Rp)
 
     def predict(self, W: np.ndarray, E: np.ndarray) -> np.ndarray:
         """stbs-lbs positions (m, n, 3) of every frame."""
@@ -297,19 +310,32 @@ class _TrigQuadratic:
         return d1, d2
 
     def root(self, lo, hi, x):
-        """Root of h' in [lo, hi] where h'(lo) < 0 < h'(hi): safeguarded Newton from x."""
+        """Root of h' in [lo, hi] where h'(lo) < 0 < h'(hi): safeguarded Newton from x,
+        each row until its step or its bracket falls below 1e-11 (about the precision
+        of h' near its root: it sums terms much larger than itself)."""
+        out = x.copy()
+        rows = np.arange(x.size)
+        h = self
         for _ in range(_NEWTON_STEPS):
-            d1, d2 = self.slopes(x)
+            d1, d2 = h.slopes(x)
             lo = np.where(d1 < 0, x, lo)
             hi = np.where(d1 > 0, x, hi)
             with np.errstate(divide="ignore", invalid="ignore"):
                 xn = x - d1 / d2
-            bad = ~((d2 > 0) & (xn > lo) & (xn < hi))
-            xn = np.where(bad, 0.5 * (lo + hi), xn)
-            if np.all(np.abs(xn - x) <= 1e-15):
-                return xn
-            x = xn
-        return x
+            newton = (d2 > 0) & (xn >= lo) & (xn <= hi)
+            done = newton & (np.abs(xn - x) <= 1e-11) | (hi - lo <= 1e-11) | (d1 == 0)
+            xn = np.where(newton, xn, 0.5 * (lo + hi))
+            out[rows] = np.where(done, x, xn)
+            if done.all():
+                break
+            go = ~done
+            rows, lo, hi, x = rows[go], lo[go], hi[go], xn[go]
+            h = h.subset(go)
+        return out
+
+    def subset(self, keep: np.ndarray) -> _TrigQuadratic:
+        return _TrigQuadratic(self.c1[keep], self.c2[keep], self.P[:, keep], self.Q[:, keep],
+                              self.ta, self.dt)
 
 
 def _minimise_trig(h: _TrigQuadratic, e_old: np.ndarray) -> np.ndarray:
@@ -325,9 +351,7 @@ def _minimise_trig(h: _TrigQuadratic, e_old: np.ndarray) -> np.ndarray:
     inside = (d_lo < 0) & (d_hi > 0)
     root = grid[kb].copy()
     if inside.any():
-        sub = _TrigQuadratic(h.c1[inside], h.c2[inside], h.P[:, inside], h.Q[:, inside],
-                             h.ta, h.dt)
-        root[inside] = sub.root(lo[inside], hi[inside], root[inside])
+        root[inside] = h.subset(inside).root(lo[inside], hi[inside], root[inside])
     cand = np.stack([e_old, lo, hi, root])
     vals = np.stack([h.value(c) for c in cand])
     return cand[np.argmin(vals, axis=0), np.arange(e_old.size)]
@@ -366,7 +390,7 @@ def _lbs_step(rig: _Rig, i: int, idx, W, E, pred) -> float:
     # alpha = (other bones - target) + w a'_i, turned back by R_i; the residual is
     # ||alpha + w R_i K_i(e) q(e)||^2 = const + w (2 alpha . K q + w ||q||^2)
     alpha = pred[:, idx] - w[:, None] * x_old - rig.Y[:, idx] + w[:, None] * rig.Ap[:, i, None]
-    alpha = np.einsum("fji,frj->fri", rig.R[:, i], alpha)
+    alpha = alpha @ rig.R[:, i]
     gam = rig.P[idx] - rig.A[i]
     gu = gam @ u
     perp = gam - gu[:, None] * u
@@ -604,12 +628,19 @@ def _weights_step(rig: _Rig, E, k: int, prior, lam) -> np.ndarray:
     accumulated over the frames, then one k-sparse simplex solve per vertex."""
     n, b = E.shape
     X = np.stack([rig.bone_points(i, np.arange(n), E[:, i]) for i in range(b)], axis=2)
-    H = np.einsum("fnic,fnjc->nij", X, X)                 # (n, b, b)
-    g = np.einsum("fnic,fnc->ni", X, rig.Y)
+    H, g = _normal_equations(X, rig.Y)
     if prior is not None:
         H[:, np.arange(b), np.arange(b)] += lam[:, None]
         g += lam[:, None] * prior
     return simplex_qp(H, g, k=k)
+
+
+def _normal_equations(X: np.ndarray, y: np.ndarray):
+    """``X^T X`` (r, a, a) and ``X^T y`` (r, a) per vertex of X (m, r, a, 3), y (m, r, 3)."""
+    m, r, a, _ = X.shape
+    Xt = np.ascontiguousarray(np.moveaxis(X, 1, 0).transpose(0, 2, 1, 3)).reshape(r, a, 3 * m)
+    yt = np.ascontiguousarray(np.moveaxis(y, 1, 0)).reshape(r, 3 * m, 1)
+    return Xt @ np.swapaxes(Xt, 1, 2), (Xt @ yt)[..., 0]
 
 
 def _objective(rig: _Rig, c, W, E, prior, lam) -> np.ndarray:
@@ -644,8 +675,7 @@ def _joint_step(rig: _Rig, W, E, prior, lam, active: np.ndarray, *,
         S = W[c] > 0
         free = np.concatenate([S & (not fix_w), S & active], axis=1)
         res = np.einsum("frbk,rb->frk", X[:, :, :b], W[c]) - rig.Y[:, c]
-        H = np.einsum("fjak,fjbk->jab", X, X)
-        g = -np.einsum("fjak,fjk->ja", X, res)
+        H, g = _normal_equations(X, -res)
         if prior is not None:
             H[:, np.arange(b), np.arange(b)] += lam[c, None]
             g[:, :b] -= lam[c, None] * (W[c] - prior[c])
