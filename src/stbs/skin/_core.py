@@ -356,12 +356,11 @@ def stbs_dqs(xp, bones: Bones, pose: PoseArrays, lay: Layout, batch: tuple):
             h = f[k] + ej * f[k + 1]
             ch, sh = xp.cos(h), xp.sin(h)
             real = tuple(ch * x + sh * y for x, y in zip(r1, r2, strict=True))
-            dual = tuple(ch * x + sh * y for x, y in zip(d1, d2, strict=True))
-            if stretch:
+            if stretch:     # dual = ch (D1 + e c R2) + sh (D2 - e c R1)
                 ec = ej * f[16]
-                ecc, ecs = ec * ch, ec * sh
-                dual = tuple(z + ecc * y - ecs * x
-                             for z, x, y in zip(dual, r1, r2, strict=True))
+                d1 = tuple(x + ec * y for x, y in zip(d1, r2, strict=True))
+                d2 = tuple(x - ec * y for x, y in zip(d2, r1, strict=True))
+            dual = tuple(ch * x + sh * y for x, y in zip(d1, d2, strict=True))
         else:
             real, dual = r1, d1
             if stretch:
