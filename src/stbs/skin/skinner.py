@@ -98,6 +98,16 @@ class Skinner:
         "auto" runs the NumPy backend on the compiled kernels; "array" always runs the
         array-API code.
 
+    Notes
+    -----
+    The result is smooth in every input except where (i) for ``dqs``/``stbs-dqs`` a
+    bone's quaternion is orthogonal to the pivot's (the hemisphere flip switches sign),
+    (ii) two bone weights of a vertex tie for the largest (the pivot switches), (iii) the
+    blended rotation quaternion is zero (the normalisation is undefined), and (iv) the
+    rotation form is singular (a zero quaternion, parallel 6D columns). 180-degree
+    rotations, antipodal quaternions and twists past 2 pi are fine. Value checks
+    (finiteness, positive stretch) run only outside ``torch.compile``/``jax.jit`` tracing.
+
     Examples
     --------
     >>> import numpy as np
