@@ -643,15 +643,31 @@ def _normal_equations(X: np.ndarray, y: np.ndarray):
     return Xt @ np.swapaxes(Xt, 1, 2), (Xt @ yt)[..., 0]
 
 
-def _objective(rig: _Rig, c, W, E, prior, lam) -> np.ndarray:
-    """Data term (and smoothness term) of the vertices c (r,)."""
+def _objective(rig: _Rig, c, Wc, Ec, prior, lam) -> np.ndarray:
+    """Data term (and smoothness term) of the vertices c (r,) with their weights
+    Wc, Ec (r, b); ``prior`` and ``lam`` are the whole mesh's (or None)."""
     r = -rig.Y[:, c]
-    for i in range(W.shape[1]):
-        r = r + W[c, i, None] * rig.bone_points(i, c, E[c, i])
+    for i in range(Wc.shape[1]):
+        r = r + Wc[:, i, None] * rig.bone_points(i, c, Ec[:, i])
     out = np.sum(r * r, axis=(0, 2))
     if prior is not None:
-        out += lam[c] * np.sum((W[c] - prior[c]) ** 2, axis=1)
+        out += lam[c] * np.sum((Wc - prior[c]) ** 2, axis=1)
     return out
+
+
+def _kkt_step(H: np.ndarray, g: np.ndarray, free: np.ndarray) -> np.ndarray:
+    """Gauss-Newton step (r, 2b) of (w, e) with the unknowns off ``free`` held and the
+    free w summing to zero change."""
+    r, a = g.shape
+    b = a // 2
+    M = np.zeros((r, a + 1, a + 1))
+    M[:, :a, :a] = np.where(free[:, :, None] & free[:, None, :], H, 0.0)
+    d = np.arange(a)
+    M[:, d, d] += np.where(free, 1e-12 * np.abs(H[:, d, d]).max(axis=1, keepdims=True), 1.0)
+    M[:, a, :b] = M[:, :b, a] = free[:, :b]                           # sum of dw = 0
+    M[:, a, a] = ~free[:, :b].any(axis=1)
+    rhs = np.concatenate([np.where(free, g, 0.0), np.zeros((r, 1))], axis=1)
+    return np.linalg.solve(M, rhs[..., None])[:, :a, 0]
 
 
 def _joint_step(rig: _Rig, W, E, prior, lam, active: np.ndarray, *,
@@ -679,27 +695,28 @@ def _joint_step(rig: _Rig, W, E, prior, lam, active: np.ndarray, *,
         if prior is not None:
             H[:, np.arange(b), np.arange(b)] += lam[c, None]
             g[:, :b] -= lam[c, None] * (W[c] - prior[c])
-        M = np.zeros((c.size, 2 * b + 1, 2 * b + 1))
-        M[:, :2 * b, :2 * b] = np.where(free[:, :, None] & free[:, None, :], H, 0.0)
-        d = np.arange(2 * b)
-        M[:, d, d] += np.where(free, 1e-12 * np.abs(H[:, d, d]).max(axis=1, keepdims=True),
-                               1.0)
-        M[:, 2 * b, :b] = M[:, :b, 2 * b] = free[:, :b]                 # sum of dw = 0
-        M[:, 2 * b, 2 * b] = fix_w
-        rhs = np.concatenate([np.where(free, g, 0.0), np.zeros((c.size, 1))], axis=1)
-        delta = np.linalg.solve(M, rhs[..., None])[:, :2 * b, 0]
+        delta = _kkt_step(H, g, free)
+        # unknowns the step would push past a bound (e below 0 or above 1, w below 0)
+        # stay where they are, the others are solved again: an active-set pass that keeps
+        # the step whole where an e sits at its bound or a tiny w is on its way out
+        E_c, W_c = E[c], W[c]
+        de, dw = delta[:, b:], delta[:, :b]
+        out = np.concatenate([(W_c + dw < 0), ((E_c <= 0) & (de < 0)) | ((E_c >= 1) & (de > 0))],
+                             axis=1) & free
+        if out.any():
+            free &= ~out
+            delta = _kkt_step(H, g, free)
         dw, de = delta[:, :b], delta[:, b:]
         with np.errstate(divide="ignore", invalid="ignore"):
             reach = np.where(S & (dw < 0), W[c] / -dw, np.inf).min(axis=1)
-        before = _objective(rig, c, W, E, prior, lam)
+        before = _objective(rig, c, W[c], E[c], prior, lam)
         for shrink in (1.0, 0.25):
             a = (np.minimum(1.0, reach) * shrink)[:, None]
-            Wt, Et = W.copy(), E.copy()
-            Wt[c] = np.where(S, np.maximum(W[c] + a * dw, 0.0), 0.0)
-            Wt[c] /= Wt[c].sum(axis=1, keepdims=True)
-            Et[c] = np.clip(E[c] + a * de, 0.0, 1.0)
+            Wt = np.where(S, np.maximum(W[c] + a * dw, 0.0), 0.0)
+            Wt /= Wt.sum(axis=1, keepdims=True)
+            Et = np.clip(E[c] + a * de, 0.0, 1.0)
             better = _objective(rig, c, Wt, Et, prior, lam) < before
-            W[c[better]], E[c[better]] = Wt[c[better]], Et[c[better]]
+            W[c[better]], E[c[better]] = Wt[better], Et[better]
             improved += int(better.sum())
             c, before = c[~better], before[~better]
             S, dw, de, reach = S[~better], dw[~better], de[~better], reach[~better]
@@ -750,7 +767,8 @@ def fit_weights(V, sk: Skeleton, poses: Sequence[Pose], frames, *, F=None,
     iterations : int
         Most rounds of (a) and (b).
     tol : float
-        Stop once a round changes no ``w_i`` and no ``w_i e_i`` by more than this.
+        Stop once a round changes no ``w_i`` and no ``w_i e_i`` by more than this, or
+        lowers the objective by less than this fraction of it.
     seed : int
         Seeds the random bone order of the endpoint sweeps.
     progress : callable, optional
@@ -781,12 +799,15 @@ def fit_weights(V, sk: Skeleton, poses: Sequence[Pose], frames, *, F=None,
     rng = np.random.default_rng(seed)
     say = _reporter(progress, "fit weights")
     inner = _reporter(progress, "endpoint weights")
-    W = None
+    W = np.zeros((n, b))
     say(0, 0)
     active = np.array([rig.active(i) for i in range(b)])
     for it in range(iterations):
-        prior = avg @ W if (W is not None and avg is not None and smoothness > 0) else None
+        prior = avg @ W if (it > 0 and avg is not None and smoothness > 0) else None
         W_old, E_old = W, E.copy()
+        everything = np.arange(n)
+        obj_old = np.inf if it == 0 else float(np.sum(_objective(rig, everything, W, E, prior,
+                                                                 lam)))
         W = _weights_step(rig, E, k, prior, lam)
         E, _ = _descend(rig, W, E, method=method, iterations=_INNER_SWEEPS, tol=tol, rng=rng,
                         say=inner)
@@ -794,7 +815,9 @@ def fit_weights(V, sk: Skeleton, poses: Sequence[Pose], frames, *, F=None,
             if _joint_step(rig, W, E, prior, lam, active) == 0:
                 break
         say(it + 1, iterations)
-        if W_old is not None and float(np.abs(W - W_old).max()) <= tol \
-                and float(np.abs(W * (E - E_old)).max()) <= tol:
+        obj = float(np.sum(_objective(rig, everything, W, E, prior, lam)))
+        if it > 0 and (obj_old - obj <= tol * obj_old or (
+                float(np.abs(W - W_old).max()) <= tol
+                and float(np.abs(W * (E - E_old)).max()) <= tol)):
             break
     return W, np.clip(E, 0.0, 1.0)
