@@ -84,7 +84,7 @@ from .. import _checks
 from .. import transforms as tf
 from ..pose import Pose
 from ..skeleton import Skeleton
-from ._lsq import simplex_qp
+from ._lsq import simplex_objective, simplex_qp
 
 __all__ = ["fit_endpoint_weights", "fit_weights", "FIT_METHODS", "Progress"]
 
@@ -623,16 +623,22 @@ def _neighbour_average(F, n: int):
     return sp.diags_array(1.0 / np.maximum(deg, 1)) @ adj, deg
 
 
-def _weights_step(rig: _Rig, E, k: int, prior, lam) -> np.ndarray:
+def _weights_step(rig: _Rig, E, k: int, prior, lam, W_prev=None) -> np.ndarray:
     """W given E (stbs-lbs is linear in W): the normal equations of every vertex
-    accumulated over the frames, then one k-sparse simplex solve per vertex."""
+    accumulated over the frames, then one k-sparse simplex solve per vertex. Where the
+    k-sparse support rule does worse than ``W_prev`` (k < b), that row is kept, so the
+    step never raises the objective."""
     n, b = E.shape
     X = np.stack([rig.bone_points(i, np.arange(n), E[:, i]) for i in range(b)], axis=2)
     H, g = _normal_equations(X, rig.Y)
     if prior is not None:
         H[:, np.arange(b), np.arange(b)] += lam[:, None]
         g += lam[:, None] * prior
-    return simplex_qp(H, g, k=k)
+    W = simplex_qp(H, g, k=k)
+    if W_prev is not None:
+        worse = simplex_objective(H, g, W) > simplex_objective(H, g, W_prev)
+        W[worse] = W_prev[worse]
+    return W
 
 
 def _normal_equations(X: np.ndarray, y: np.ndarray):
@@ -732,7 +738,7 @@ def fit_weights(V, sk: Skeleton, poses: Sequence[Pose], frames, *, F=None,
                 progress: Progress | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Bone weights W and endpoint weights E that best reproduce example meshes.
 
-    Alternates two solves until neither changes (by more than ``tol``):
+    Each round runs, for all vertices at once (module docs):
 
     (a) W given E: stbs-lbs is linear in W, so each vertex's weights solve a bounded,
         sum-to-one, at most ``max_influences``-sparse least-squares problem over all
@@ -740,7 +746,13 @@ def fit_weights(V, sk: Skeleton, poses: Sequence[Pose], frames, *, F=None,
         support an active-set rule picks), plus ``smoothness`` times the squared
         distance to the average of the vertex's neighbours' weights (from the previous
         round) across the edges of ``F``;
-    (b) E given W: the exact coordinate descent of :func:`fit_endpoint_weights`.
+    (b) E given W: a few sweeps of the coordinate descent of
+        :func:`fit_endpoint_weights`;
+    (c) a few Gauss-Newton steps on W and E together on the supports of (a), each kept
+        only where it lowers the vertex's objective.
+
+    The objective never rises within a round; the result is a local minimum (the
+    problem is not convex in W and E jointly), reached from projection E.
 
     The data term is divided by ``m L^2`` (m frames, L the diagonal of V's bounding
     box), so ``smoothness`` does not depend on the number of frames or on the units.
@@ -808,7 +820,7 @@ def fit_weights(V, sk: Skeleton, poses: Sequence[Pose], frames, *, F=None,
         everything = np.arange(n)
         obj_old = np.inf if it == 0 else float(np.sum(_objective(rig, everything, W, E, prior,
                                                                  lam)))
-        W = _weights_step(rig, E, k, prior, lam)
+        W = _weights_step(rig, E, k, prior, lam, W_prev=W if it > 0 else None)
         E, _ = _descend(rig, W, E, method=method, iterations=_INNER_SWEEPS, tol=tol, rng=rng,
                         say=inner)
         for _ in range(_JOINT_STEPS):
