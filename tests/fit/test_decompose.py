@@ -128,6 +128,8 @@ def test_same_seed_same_result_and_seeds_matter(chain):
         np.testing.assert_array_equal(p.rotations, q.rotations)
         np.testing.assert_array_equal(p.twist, q.twist)
     assert a.history == b.history
+    c = decompose(V, Y, 3, F=F, iterations=3, seed=6)      # another start, another answer
+    assert np.abs(c.W - a.W).max() > 0.1
 
 
 def test_progress_reports_stages_and_a_raise_cancels(chain):
