@@ -271,3 +271,16 @@ def test_bench_fit_data_is_found_or_named(tmp_path, monkeypatch):
     with pytest.raises(ValueError, match="has no frames, F"):
         bench.load_sequence(f)
     assert bench.main(["--data", str(tmp_path / "nowhere")]) == 2
+
+
+def test_smoothness_pulls_weights_towards_their_neighbours(chain):
+    V, F, Y = chain
+    E = np.r_[F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]]
+
+    def roughness(W):
+        return float(np.sum((W[E[:, 0]] - W[E[:, 1]]) ** 2))
+
+    rough = decompose(V, Y, 3, F=F, iterations=4, smoothness=0.0, seed=0)
+    smooth = decompose(V, Y, 3, F=F, iterations=4, smoothness=1e-2, seed=0)
+    assert roughness(smooth.W) < 0.7 * roughness(rough.W)
+    assert smooth.rmse > rough.rmse                   # smoothness costs some fit
