@@ -159,6 +159,11 @@ def test_two_dimensional_rig():
     poses = random_poses(rng, sk, 8)
     frames = frames_of(V, sk, poses, W, E)
     recovered(fit_endpoint_weights(V, sk, W, poses, frames), E, W, 1e-3)
+    # stbs-dqs in 2D, bones turned by at most 1 rad (the blend is continuous in E)
+    poses = [stbs.Pose(sk, rotations=rng.uniform(-1, 1, 3), stretch=rng.uniform(0.5, 2, 3),
+                       origins=sk.A + rng.normal(size=(3, 2)) * 0.2) for _ in range(8)]
+    frames = frames_of(V, sk, poses, W, E, "stbs-dqs")
+    recovered(fit_endpoint_weights(V, sk, W, poses, frames, method="stbs-dqs"), E, W, 1e-3)
 
 
 def test_noisy_frames_fit_no_worse_than_the_truth(tube_rig):

@@ -39,8 +39,9 @@ that stretch and twist each bone it finds the true E of noise-free examples.
 
 ``method="stbs-dqs"`` (eq. 6) uses the same descent on the dual-quaternion model: the
 1D residual is evaluated exactly (blend, normalise, apply) on the same grid and refined
-by golden-section search; whenever the descent settles, a joint grid search over each
-pair of bones sharing vertices looks for a better minimum and the descent resumes from
+by golden-section search; the Gauss-Newton step takes a forward-difference Jacobian;
+whenever the descent settles, a joint grid search over each pair of bones sharing
+vertices (one of which twists) looks for a better minimum and the descent resumes from
 it. It is a local method: where two bones at a vertex turn more than 180 degrees apart
 in some frame, a quaternion crosses its pivot's hemisphere as e moves, the residual
 jumps there, and the true E can lie in a narrow valley between such jumps that
@@ -275,9 +276,11 @@ def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 
 # ============================================================================ 1D minimisers
-def _grid(dt_max: float) -> np.ndarray:
-    """Samples of [0, 1], each interval at most an eighth of the fastest period."""
-    return np.linspace(0.0, 1.0, max(_GRID_MIN, int(np.ceil(dt_max * _GRID_PER_RADIAN)) + 1))
+def _grid(dt_max: float, *, per_radian: float = _GRID_PER_RADIAN,
+          least: int = _GRID_MIN) -> np.ndarray:
+    """Samples of [0, 1], each interval at most an eighth of the fastest period (by
+    default; the pair search takes a quarter)."""
+    return np.linspace(0.0, 1.0, max(least, int(np.ceil(dt_max * per_radian)) + 1))
 
 
 class _TrigQuadratic:
@@ -445,6 +448,10 @@ class _DqsResidual:
             if others.size else None                                        # (4, m, r)
 
     def __call__(self, *es: np.ndarray) -> np.ndarray:
+        return np.sum((self.points(*es) - self.Y) ** 2, axis=(0, 1))
+
+    def points(self, *es: np.ndarray) -> np.ndarray:
+        """Blended positions (3, m, r)."""
         qs = [self.rig.bone_dq(i, e) for i, e in zip(self.vary, es, strict=True)]
         qp = self.qp
         for (qr, _), mine in zip(qs, self.piv_vary, strict=True):
@@ -456,7 +463,7 @@ class _DqsResidual:
             si = np.where(np.sum(qr * qp, axis=0) < 0, -1.0, 1.0) * w
             cr = cr + si * qr
             cd = cd + si * qd
-        return np.sum((_dq_points(cr, cd, self.P) - self.Y) ** 2, axis=(0, 1))
+        return _dq_points(cr, cd, self.P)
 
 
 def _chunks(rig: _Rig, idx: np.ndarray, b: int):
@@ -475,15 +482,70 @@ def _dqs_step(rig: _Rig, i: int, idx, W, E, pred) -> float:
     return change
 
 
+def _dqs_polish(rig: _Rig, bones: list[int], W, E) -> int:
+    """One Gauss-Newton step on all of a vertex's e together on the stbs-dqs model, with
+    a forward-difference Jacobian (steps of 1e-7, taken inwards at the bounds); e
+    pushed past a bound is held there; kept only where it lowers the vertex's residual.
+    Returns how many vertices improved."""
+    improved = 0
+    h = 1e-7
+    for c in _chunks(rig, np.flatnonzero(np.any(W[:, bones] > 0, axis=1)), W.shape[1]):
+        vary = [i for i in bones if np.any(W[c, i] > 0)]
+        f = _DqsResidual(rig, vary, c, W, E)
+        es = [E[c, i] for i in vary]
+        base = f.points(*es)
+        cols = []
+        for t in range(len(vary)):
+            step = np.where(es[t] > 0.5, -h, h)
+            moved = list(es)
+            moved[t] = es[t] + step
+            cols.append((f.points(*moved) - base) / step)
+        Jc = np.stack(cols, axis=-1)                                  # (3, m, r, v)
+        H = np.einsum("kfra,kfrb->rab", Jc, Jc)
+        g = -np.einsum("kfra,kfr->ra", Jc, base - f.Y)
+        Ec = E[c][:, vary]
+        free = W[c][:, vary] > 0
+        delta = _masked_solve(H, g, free)
+        out = free & (((Ec <= 0) & (delta < 0)) | ((Ec >= 1) & (delta > 0)))
+        if out.any():
+            delta = _masked_solve(H, g, free & ~out)
+        before = f(*es)
+        for shrink in (1.0, 0.25):
+            Et = np.clip(Ec + shrink * delta, 0.0, 1.0)
+            better = f(*Et.T) < before
+            rows = c[better]
+            E[rows[:, None], np.array(vary)[None, :]] = Et[better]
+            improved += int(better.sum())
+            if better.all():
+                break
+            before = np.where(better, -np.inf, before)
+            Ec = np.where(better[:, None], Et, Ec)
+            delta = np.where(better[:, None], 0.0, delta)
+    return improved
+
+
+def _masked_solve(H: np.ndarray, g: np.ndarray, free: np.ndarray) -> np.ndarray:
+    """``H d = g`` per row on the ``free`` unknowns (the others 0), with a tiny ridge."""
+    a = g.shape[1]
+    d = np.arange(a)
+    M = np.where(free[:, :, None] & free[:, None, :], H, 0.0)
+    M[:, d, d] += np.where(free, 1e-12 * np.abs(H[:, d, d]).max(axis=1, keepdims=True)
+                           + 1e-300, 1.0)
+    return np.linalg.solve(M, np.where(free, g, 0.0)[..., None])[..., 0]
+
+
 def _dqs_pairs(rig: _Rig, bones: list[int], W, E) -> int:
     """Joint grid search over (e_i, e_j) for every pair of bones sharing vertices, to
     leave minima of the coordinate descent that a pair of bones holds (the dual
     quaternions' hemisphere flips make them common). Returns how many vertices moved."""
     moved = np.zeros(W.shape[0], bool)
+    twists = [i for i in bones if np.any(rig.dt[:, i] != 0)]
     for i, j in ((i, j) for i in bones for j in bones if i < j):
+        if i not in twists and j not in twists:
+            continue             # no e moves a rotation: no hemisphere jumps, no traps
         idx = np.flatnonzero((W[:, i] > 0) & (W[:, j] > 0))
-        gi = _grid(float(np.abs(rig.dt[:, i]).max()))
-        gj = _grid(float(np.abs(rig.dt[:, j]).max()))
+        gi, gj = (_grid(float(np.abs(rig.dt[:, x]).max()), per_radian=_GRID_PER_RADIAN / 2,
+                        least=9) for x in (i, j))
         for c in _chunks(rig, idx, W.shape[1]):
             f = _DqsResidual(rig, [i, j], c, W, E)
             best = f(E[c, i], E[c, j])
@@ -521,13 +583,15 @@ def _descend(rig: _Rig, W, E, *, method, iterations, tol, rng, say) -> tuple[np.
             if supports[i].size:
                 change = max(change, step(rig, int(i), supports[i], W, E, pred))
             say(sweep * len(bones) + t + 1, total)
-        if pred is not None and change > tol:
+        if change > tol:
             # Gauss-Newton polish on E (module docs): coordinate descent alone converges
             # linearly where a vertex's bones are coupled
             E_before = E.copy()
-            if _joint_step(rig, W, E, None, None, active, fix_w=True):
-                change = max(change, float(np.abs(W * (E - E_before)).max()))
+            if pred is None:
+                _dqs_polish(rig, bones, W, E)
+            elif _joint_step(rig, W, E, None, None, active, fix_w=True):
                 pred[...] = rig.predict(W, E)
+            change = max(change, float(np.abs(W * (E - E_before)).max()))
         if change <= tol:
             if pair_rounds == 0 or _dqs_pairs(rig, bones, W, E) == 0:
                 return E, sweep + 1
