@@ -233,9 +233,7 @@ def decompose(rest, frames, n_bones: int, *, F=None, max_influences: int = 4,
     >>> d.rmse < 1e-9
     True
     """
-    from ..weights._progress import check_callable
-
-    check_callable(progress, "progress(stage, done, total)")
+    _checks.progress(progress, "progress(stage, done, total)")
     X, Y, F, method, b, k = _inputs(rest, frames, n_bones, F, max_influences, iterations,
                                     method, smoothness)
     say = progress or (lambda stage, done, total: None)
