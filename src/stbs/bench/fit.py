@@ -1,6 +1,7 @@
-"""Skinning decomposition on the horse gallop (``stbs bench --fit``): STBS-SSDR
-(:func:`stbs.fit.decompose`) beside EA's Dem Bones (rigid-bone LBS, ``py_dem_bones``)
-on the same frames in the same run, at each bone count.
+"""Skinning decomposition of the horse gallop: STBS-SSDR beside Dem Bones.
+
+``stbs bench --fit`` runs :func:`stbs.fit.decompose` and EA's Dem Bones (rigid-bone
+LBS, ``py_dem_bones``) on the same frames in the same run, at each bone count.
 
 The sequence is the horse gallop of Sumner & Popovic (2004): 48 frames of one
 8431-vertex mesh, no skeleton. Each method gets the rest mesh, the frames, the
