@@ -122,11 +122,28 @@ def to_numpy(x: Any) -> np.ndarray:
     return np.asarray(x)
 
 
+def library(xp: ModuleType) -> str:
+    """The library behind a namespace: "numpy", "torch", "jax", "cupy", ..."""
+    name = xp.__name__.split(".")
+    return name[1] if name[0] == "array_api_compat" and len(name) > 1 else name[0]
+
+
+def belongs(xp: ModuleType, x: Any) -> bool:
+    """Whether ``x`` is an array of ``xp``'s library (by its type's module: cheap, and
+    plain Python under torch.compile's tracing)."""
+    if x is None or isinstance(x, (list, tuple, float, int)):
+        return False
+    lib = library(xp)
+    mod = type(x).__module__.split(".")[0]
+    if lib == "numpy":
+        return isinstance(x, np.ndarray)
+    return mod == lib or (lib == "jax" and mod == "jaxlib")
+
+
 def asarray(xp: ModuleType, x: Any, dtype=None, device=None):
     """``x`` on the backend: backend arrays pass through (cast only when the dtype
     differs, which keeps them differentiable); anything else is converted."""
-    if not isinstance(x, np.ndarray) and array_api_compat.is_array_api_obj(x) and \
-            array_api_compat.array_namespace(x) is xp:
+    if belongs(xp, x):
         if dtype is not None and x.dtype != dtype:
             x = xp.astype(x, dtype)
         if device is not None and array_api_compat.device(x) != device:

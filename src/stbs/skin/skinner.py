@@ -40,8 +40,7 @@ _POSE_DOC = """rotations : (*B, b, d, d) float, optional
 
 def _is_backend_array(xp, x) -> bool:
     return (x is not None and not isinstance(x, np.ndarray) and not sp.issparse(x)
-            and array_api_compat.is_array_api_obj(x)
-            and array_api_compat.array_namespace(x) is xp)
+            and bk.belongs(xp, x))
 
 
 def _gather_rows(xp, X, rows_idx, b: int):
@@ -131,6 +130,7 @@ class Skinner:
         self.engine = _checks.choice("engine", engine, ("auto", "array"))
         xp = bk.namespace(backend, V, W, E)
         self.xp = xp
+        self._uses_kernels = self.engine == "auto" and bk.is_numpy(xp)
         self.dtype = bk.float_dtype(xp, dtype, V)
         if device is None and _is_backend_array(xp, V):
             device = array_api_compat.device(V)
@@ -210,7 +210,7 @@ class Skinner:
     @property
     def uses_kernels(self) -> bool:
         """Whether calls run the compiled NumPy kernels (NumPy backend, engine "auto")."""
-        return self.engine == "auto" and bk.is_numpy(self.xp)
+        return self._uses_kernels
 
     def __call__(self, rotations=None, origins=None, stretch=None, twist=None, *,
                  quaternions=None, angles=None, rot6d=None):
