@@ -725,18 +725,22 @@ def _objective(rig: _Rig, c, Wc, Ec, prior, lam) -> np.ndarray:
     return out
 
 
-def _kkt_step(H: np.ndarray, g: np.ndarray, free: np.ndarray) -> np.ndarray:
-    """Gauss-Newton step (r, 2b) of (w, e) with the unknowns off ``free`` held and the
-    free w summing to zero change."""
+def _kkt_step(H: np.ndarray, g: np.ndarray, free: np.ndarray,
+              held: np.ndarray | None = None) -> np.ndarray:
+    """Gauss-Newton step (r, 2b) of (w, e): the unknowns off ``free`` move by ``held``
+    (default 0), the free ones solve ``H d = g`` with all w's changes summing to zero."""
     r, a = g.shape
     b = a // 2
+    held = np.zeros((r, a)) if held is None else held
     M = np.zeros((r, a + 1, a + 1))
     M[:, :a, :a] = np.where(free[:, :, None] & free[:, None, :], H, 0.0)
     d = np.arange(a)
     M[:, d, d] += np.where(free, 1e-12 * np.abs(H[:, d, d]).max(axis=1, keepdims=True), 1.0)
     M[:, a, :b] = M[:, :b, a] = free[:, :b]                           # sum of dw = 0
     M[:, a, a] = ~free[:, :b].any(axis=1)
-    rhs = np.concatenate([np.where(free, g, 0.0), np.zeros((r, 1))], axis=1)
+    coupled = np.einsum("rab,rb->ra", H, held)
+    rhs = np.concatenate([np.where(free, g - coupled, held),
+                          -held[:, :b].sum(axis=1, keepdims=True)], axis=1)
     return np.linalg.solve(M, rhs[..., None])[:, :a, 0]
 
 
@@ -766,20 +770,24 @@ def _joint_step(rig: _Rig, W, E, prior, lam, active: np.ndarray, *,
             H[:, np.arange(b), np.arange(b)] += lam[c, None]
             g[:, :b] -= lam[c, None] * (W[c] - prior[c])
         delta = _kkt_step(H, g, free)
-        # unknowns the step would push past a bound (e below 0 or above 1, w below 0)
-        # stay where they are, the others are solved again: an active-set pass that keeps
-        # the step whole where an e sits at its bound or a tiny w is on its way out
+        # unknowns the step would push past a bound are held there (e at 0 or 1, w set
+        # to 0) and the others solved again: an active-set pass that keeps the step
+        # whole where an e sits at its bound or a tiny w is on its way out
         E_c, W_c = E[c], W[c]
         de, dw = delta[:, b:], delta[:, :b]
         out = np.concatenate([(W_c + dw < 0), ((E_c <= 0) & (de < 0)) | ((E_c >= 1) & (de > 0))],
                              axis=1) & free
         if out.any():
             free &= ~out
-            delta = _kkt_step(H, g, free)
+            held = np.zeros_like(delta)
+            held[:, :b] = np.where(out[:, :b], -W_c, 0.0)               # those w drop to 0
+            delta = _kkt_step(H, g, free, held)
         dw, de = delta[:, :b], delta[:, b:]
         with np.errstate(divide="ignore", invalid="ignore"):
             reach = np.where(S & (dw < 0), W[c] / -dw, np.inf).min(axis=1)
-        before = _objective(rig, c, W[c], E[c], prior, lam)
+        before = np.sum(res * res, axis=(0, 2))
+        if prior is not None:
+            before += lam[c] * np.sum((W[c] - prior[c]) ** 2, axis=1)
         for shrink in (1.0, 0.25):
             a = (np.minimum(1.0, reach) * shrink)[:, None]
             Wt = np.where(S, np.maximum(W[c] + a * dw, 0.0), 0.0)
@@ -844,7 +852,8 @@ def fit_weights(V, sk: Skeleton, poses: Sequence[Pose], frames, *, F=None,
         Most rounds of (a) and (b).
     tol : float
         Stop once a round changes no ``w_i`` and no ``w_i e_i`` by more than this, or
-        lowers the objective by less than this fraction of it.
+        lowers the objective by less than this fraction of it (or the examples are
+        matched to rounding).
     seed : int
         Seeds the random bone order of the endpoint sweeps.
     progress : callable, optional
@@ -876,6 +885,7 @@ def fit_weights(V, sk: Skeleton, poses: Sequence[Pose], frames, *, F=None,
     say = _reporter(progress, "fit weights")
     inner = _reporter(progress, "endpoint weights")
     W = np.zeros((n, b))
+    exact = 1e-24 * float(np.sum(rig.Y ** 2))     # fitted to rounding: nothing left to do
     say(0, 0)
     active = np.array([rig.active(i) for i in range(b)])
     for it in range(iterations):
@@ -892,7 +902,7 @@ def fit_weights(V, sk: Skeleton, poses: Sequence[Pose], frames, *, F=None,
                 break
         say(it + 1, iterations)
         obj = float(np.sum(_objective(rig, everything, W, E, prior, lam)))
-        if it > 0 and (obj_old - obj <= tol * obj_old or (
+        if obj <= exact or it > 0 and (obj_old - obj <= tol * obj_old or (
                 float(np.abs(W - W_old).max()) <= tol
                 and float(np.abs(W * (E - E_old)).max()) <= tol)):
             break
