@@ -1,4 +1,5 @@
-"""stbs.fit.decompose: a mesh animation decomposed into stretchable, twistable bones."""
+"""stbs.fit.decompose (stbs/fit/ssdr.py): a mesh animation decomposed into stretchable,
+twistable bones."""
 
 from __future__ import annotations
 
@@ -7,7 +8,7 @@ import pytest
 
 import stbs
 from stbs.fit import Decomposition
-from stbs.fit.decompose import decompose, frames_needed
+from stbs.fit.ssdr import decompose, frames_needed
 from stbs.shapes import cigar
 from stbs.transforms import axis_angle_to_matrix
 
@@ -71,7 +72,7 @@ def test_stretch_and_twist_are_recovered_where_rigid_bones_cannot(chain, chain_f
     assert np.ptp(th) > 0.5                           # ... and twist
     # within the documented bounds: stretch in SIGMA_RANGE, twist along a bone <= pi,
     # kept symmetric (a twist common to the whole bone is in R)
-    from stbs.fit._decompose_model import SIGMA_RANGE
+    from stbs.fit._ssdr_model import SIGMA_RANGE
     assert SIGMA_RANGE[0] <= sig.min() and sig.max() <= SIGMA_RANGE[1]
     assert np.abs(th[..., 1] - th[..., 0]).max() <= np.pi + 1e-12
     np.testing.assert_allclose(th[..., 0], -th[..., 1], atol=1e-12)
@@ -227,7 +228,6 @@ def test_horse_part_error_falls_across_iterations(horse_part):
 
 # --------------------------------------------------------------------------- the benchmark
 def test_bench_fit_runs_both_methods_and_measures_them_alike(chain, tmp_path):
-    pytest.importorskip("py_dem_bones")
     from threadpoolctl import threadpool_limits
 
     from stbs.bench import fit as bench
@@ -238,7 +238,7 @@ def test_bench_fit_runs_both_methods_and_measures_them_alike(chain, tmp_path):
     lines: list[str] = []
     # one OpenMP thread: on a busy 2-core machine Dem Bones' threads wait on each other
     with threadpool_limits(1, user_api="openmp"):
-        doc = bench.run((3,), iterations=2, peer_iterations=3, out=lines.append,
+        doc = bench.report((3,), iterations=2, peer_iterations=3, out=lines.append,
                         data=tmp_path)
     rows = {r["method"].split()[0]: r for r in doc["rows"]}
     assert set(rows) == {"STBS-SSDR", "ours,", "Dem"}
@@ -274,7 +274,10 @@ def test_bench_fit_data_is_found_or_named(tmp_path, monkeypatch):
     assert bench.find_data() == f
     with pytest.raises(ValueError, match="horse-gallop.npz not found; tried"):
         bench.find_data(tmp_path / "nowhere")
-    with pytest.raises(ValueError, match="has no frames, F"):
+    with pytest.raises(ValueError, match="a member 'frames'"):
+        bench.load_sequence(f)
+    np.savez(f, frames=np.zeros((2, 3, 3)))
+    with pytest.raises(ValueError, match="has no triangles 'F'"):
         bench.load_sequence(f)
     assert bench.main(["--data", str(tmp_path / "nowhere")]) == 2
 

@@ -1,4 +1,5 @@
-"""stbs.fit.helper_joints: an STBS rig as plain LBS with k rigid helper joints per bone.
+"""stbs.fit.helper_joints (stbs/fit/twist_bones.py): an STBS rig as plain LBS with k rigid
+helper joints per bone.
 
 By hand (the helpers' places and maps, a stretch that hat weights reproduce exactly, the
 chord a 180-degree twist cuts with k = 2), properties (rest, rigid poses, k = 1, the
@@ -24,7 +25,7 @@ import stbs
 import stbs.fit
 from rigs import random_rotations
 from stbs import io
-from stbs.fit.helper_joints import HelperRig, helper_joints, helper_params, helper_skeleton
+from stbs.fit.twist_bones import HelperRig, helper_joints, helper_params, helper_skeleton
 from stbs.shapes import bar, cigar
 
 REPO = Path(__file__).resolve().parents[2]

@@ -18,9 +18,9 @@ mesh's bounding box; the same function measures both. The SSDR papers (Kavan et 
 published SSDR figures for this sequence (0.49 % with 10 bones, 0.243 % with 20) in
 that convention.
 
-The data file is ``horse-gallop.npz`` (keys ``rest``, ``frames``, ``F``): ``data=``
-(``--data``) names it, or a folder holding it or ``sequences/horse-gallop.npz``;
-otherwise ``$STBS_DATA`` (else a source checkout's test data folder) is searched the
+The data file is ``horse-gallop.npz`` (a mesh animation as :func:`stbs.io.read_sequence`
+reads it: ``frames``, ``rest``, ``F``): ``data=`` (``--data``) names it, or a folder
+holding it or ``sequences/horse-gallop.npz``; otherwise ``$STBS_DATA`` is searched the
 same way. Docs: ``docs/fitting.md``.
 """
 
@@ -46,7 +46,8 @@ from .report import (
 )
 
 __all__ = ["DEFAULT_BONES", "PUBLISHED", "FILE", "find_data", "load_sequence", "rmse",
-           "dem_bones", "collect", "format_table", "run", "add_arguments", "main"]
+           "dem_bones", "collect", "format_table", "report", "run", "requires",
+           "add_arguments", "main"]
 
 #: Bone counts of the default run (those the SSDR paper reports for the horse).
 DEFAULT_BONES: tuple[int, ...] = (10, 20)
@@ -76,10 +77,6 @@ def find_data(data: str | os.PathLike | None = None) -> Path:
     roots = [Path(data)] if data is not None else []
     if data is None and os.environ.get("STBS_DATA"):
         roots.append(Path(os.environ["STBS_DATA"]).expanduser())
-    elif data is None:                   # a source checkout's data folder, as the tests
-        beside = Path(__file__).resolve().parents[3].parent / "shared" / "data"
-        if beside.is_dir():
-            roots.append(beside)
     tried = []
     for root in roots:
         for cand in (root, root / FILE, root / "sequences" / FILE):
@@ -93,14 +90,16 @@ def find_data(data: str | os.PathLike | None = None) -> Path:
 
 
 def load_sequence(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """``rest`` (n, 3), ``frames`` (F, n, 3) float64 and ``F`` (f, 3) int64 of an ``.npz``."""
-    with np.load(path) as z:
-        missing = [k for k in ("rest", "frames", "F") if k not in z.files]
-        if missing:
-            raise ValueError(f"{path} has no {', '.join(missing)} (expected keys rest, "
-                             f"frames, F)")
-        return (np.asarray(z["rest"], dtype=np.float64),
-                np.asarray(z["frames"], dtype=np.float64), np.asarray(z["F"], dtype=np.int64))
+    """``rest`` (n, 3), ``frames`` (F, n, 3) float64 and ``F`` (f, 3) int64 of a mesh
+    animation (:func:`stbs.io.read_sequence`); the triangles are required here (both
+    methods smooth their weights across them)."""
+    from ..io import read_sequence
+
+    seq = read_sequence(path)
+    if seq.F is None:
+        raise ValueError(f"{path} has no triangles 'F': both methods smooth their weights "
+                         "across the surface")
+    return seq.rest, seq.frames, seq.F
 
 
 def rmse(U: np.ndarray, Y: np.ndarray) -> float:
@@ -114,16 +113,10 @@ def dem_bones(rest, frames, F, bones: int, *, iterations: int = PEER_ITERATIONS,
               max_influences: int = 4) -> tuple[np.ndarray, int]:
     """Dem Bones' reproduction of ``frames`` (F, n, 3) and the bones it used.
 
-    Raises
-    ------
-    ImportError
-        ``py_dem_bones`` is not installed (the ``bench`` extra).
+    ``py_dem_bones`` comes with the ``bench`` extra.
     """
-    try:
-        from py_dem_bones import solve_skinning
-    except ImportError as exc:
-        raise ImportError("stbs bench --fit needs py_dem_bones (pip install "
-                          "'stbs-skinning[bench]')") from exc
+    from py_dem_bones import solve_skinning
+
     res = solve_skinning(rest, frames, bones, faces=F, max_influences=max_influences,
                          iterations=iterations)
     W = res.weights.T                                   # (n, b)
@@ -137,8 +130,8 @@ def dem_bones(rest, frames, F, bones: int, *, iterations: int = PEER_ITERATIONS,
 def collect(bones: Sequence[int] = DEFAULT_BONES, *, seed: int = 0,
             iterations: int = DEFAULT_ITERATIONS, peer_iterations: int = PEER_ITERATIONS,
             rigid: bool = True, data=None, log: Out = lambda msg: None) -> dict:
-    """Run the methods at each bone count; the JSON document of :func:`run`."""
-    from ..fit.decompose import decompose
+    """Run the methods at each bone count; the JSON document of :func:`report`."""
+    from ..fit.ssdr import decompose
 
     path = find_data(data)
     rest, frames, F = load_sequence(path)
@@ -212,7 +205,7 @@ def _versus(a: float, b: float, whose: str = " than Dem Bones'") -> str:
     return f"{abs(gain):.0f} % {'lower' if gain >= 0 else 'higher'}{whose}"
 
 
-def run(bones: Sequence[int] = DEFAULT_BONES, *, seed: int = 0,
+def report(bones: Sequence[int] = DEFAULT_BONES, *, seed: int = 0,
         iterations: int = DEFAULT_ITERATIONS, peer_iterations: int = PEER_ITERATIONS,
         rigid: bool = True, out: Out = print, data=None,
         log: Out = lambda msg: None) -> dict:
@@ -281,28 +274,37 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="also write machine, settings and rows as JSON")
 
 
+def requires(args: argparse.Namespace) -> list[str]:
+    return ["py_dem_bones"]
+
+
+def run(args: argparse.Namespace) -> int:
+    """``stbs bench --fit`` with parsed options: print the table, write ``--json``."""
+    json_path = check_json_path(args.json)
+
+    def log(msg: str) -> None:
+        print(f"stbs bench --fit: {msg}", file=sys.stderr, flush=True)
+
+    doc = report(args.bones, seed=args.seed, iterations=args.iterations,
+                 peer_iterations=args.peer_iterations, rigid=args.rigid, data=args.data,
+                 log=log)
+    if json_path is not None:
+        write_json(json_path, doc)
+        print(f"\nwrote {json_path}")
+    return 0
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """``python -m stbs.bench.fit [options]``: the same as ``stbs bench --fit``; returns
     the exit status (2 and one line on stderr for a bad option or missing data)."""
     p = argparse.ArgumentParser(prog="stbs bench --fit", description=__doc__.splitlines()[0])
     add_arguments(p)
     args = p.parse_args(argv)
-
-    def log(msg: str) -> None:
-        print(f"stbs bench --fit: {msg}", file=sys.stderr, flush=True)
-
     try:
-        json_path = check_json_path(args.json)
-        doc = run(args.bones, seed=args.seed, iterations=args.iterations,
-                  peer_iterations=args.peer_iterations, rigid=args.rigid, data=args.data,
-                  log=log)
+        return run(args)
     except (ValueError, OSError, ImportError) as exc:
         print(f"stbs bench --fit: error: {exc}", file=sys.stderr)
         return 2
-    if json_path is not None:
-        write_json(json_path, doc)
-        log(f"wrote {json_path}")
-    return 0
 
 
 if __name__ == "__main__":

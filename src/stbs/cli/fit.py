@@ -44,9 +44,11 @@ RIG_OUT = (".npz",)
 HELPER_OUT = (".npz", ".glb", ".gltf")
 
 
-def _common(p: argparse.ArgumentParser, *, seed: bool = True) -> None:
-    p.add_argument("--method", choices=("stbs-lbs", "stbs-dqs"), default="stbs-lbs",
-                   help="the skinning model fitted (default: stbs-lbs)")
+def _common(p: argparse.ArgumentParser, *, seed: bool = True,
+            methods: tuple[str, ...] = ("stbs-lbs", "stbs-dqs")) -> None:
+    p.add_argument("--method", choices=methods, default="stbs-lbs",
+                   help="the skinning model fitted (default: stbs-lbs"
+                        + ("; lbs: rigid bones" if "lbs" in methods else "") + ")")
     p.add_argument("--iterations", type=int, default=None,
                    help="rounds of the alternating solve (default: the function's)")
     if seed:
@@ -74,7 +76,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     d.add_argument("--clip-out", metavar="CLIP.json", help="also write the frames' poses")
     d.add_argument("--fps", type=float, default=30.0,
                    help="frames per second of --clip-out (default 30)")
-    _common(d)
+    _common(d, methods=("stbs-lbs", "lbs"))
     for job, what in (("endpoints", "endpoint weights"),
                       ("weights", "bone weights and endpoint weights")):
         e = sub.add_parser(job, formatter_class=fmt,
@@ -97,7 +99,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
             e.add_argument("--smoothness", type=float, default=None,
                            help="weight of the smoothness term across the surface "
                                 "(default: the function's)")
-        _common(e, seed=job == "weights")
+        _common(e, seed=job == "weights",
+                methods=("stbs-lbs", "stbs-dqs") if job == "endpoints" else ("stbs-lbs",))
     h = sub.add_parser("helpers", formatter_class=fmt,
                        help="an STBS rig as plain LBS with helper joints",
                        description="Turn an STBS rig into plain linear blend skinning with "

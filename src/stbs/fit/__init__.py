@@ -17,10 +17,10 @@ from __future__ import annotations
 _EXPORTS = {
     "fit_endpoint_weights": "from_poses",
     "fit_weights": "from_poses",
-    "decompose": "decompose",
-    "Decomposition": "decompose",
-    "helper_joints": "helper_joints",
-    "HelperRig": "helper_joints",
+    "decompose": "ssdr",
+    "Decomposition": "ssdr",
+    "helper_joints": "twist_bones",
+    "HelperRig": "twist_bones",
 }
 
 __all__ = sorted(_EXPORTS)
@@ -30,9 +30,5 @@ def __getattr__(name: str):
     if name in _EXPORTS:
         import importlib
 
-        value = getattr(importlib.import_module(f".{_EXPORTS[name]}", __name__), name)
-        # importing the submodule set a package attribute of the same name (decompose,
-        # helper_joints): the function takes its place
-        globals()[name] = value
-        return value
+        return getattr(importlib.import_module(f".{_EXPORTS[name]}", __name__), name)
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -1,4 +1,4 @@
-"""The starting point of STBS-SSDR (private to :mod:`stbs.fit.decompose`).
+"""The starting point of STBS-SSDR (private to :mod:`stbs.fit.ssdr`).
 
 As in SSDR (Le & Deng 2012): vertices are clustered by their motion (k-means++ on the
 vertex trajectories, seeded), then the clusters are refined as rigid bones: fit one
@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._decompose_model import Bones, State, procrustes
+from ._ssdr_model import Bones, State, procrustes
 
 #: A cluster needs this many vertices to fix a rotation (three not on one line).
 MIN_CLUSTER = 3

@@ -1,4 +1,4 @@
-"""The STBS-SSDR model and its block updates (private to :mod:`stbs.fit.decompose`).
+"""The STBS-SSDR model and its block updates (private to :mod:`stbs.fit.ssdr`).
 
 Bone i of the decomposition maps a rest vertex p with endpoint weight e (eq. 5) to
 

@@ -1,4 +1,4 @@
-"""The bone-weight step of STBS-SSDR (private to :mod:`stbs.fit.decompose`).
+"""The bone-weight step of STBS-SSDR (private to :mod:`stbs.fit.ssdr`).
 
 With every bone's transforms and endpoint weights held, each vertex's weights are one
 small least-squares problem on the simplex: the columns are the candidate bones'
@@ -13,8 +13,8 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
-from ._decompose_model import Bones, State, bone_points
 from ._lsq import simplex_objective, simplex_qp
+from ._ssdr_model import Bones, State, bone_points
 
 #: Candidate bones per vertex beyond ``max_influences`` (the closest fits by one bone).
 EXTRA_CANDIDATES = 4

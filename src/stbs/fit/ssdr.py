@@ -23,8 +23,6 @@ See ``docs/fitting.md``.
 
 from __future__ import annotations
 
-import sys
-import types
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from numbers import Integral, Real
@@ -35,9 +33,9 @@ import numpy as np
 from .. import _checks
 from ..pose import Pose
 from ..skeleton import Skeleton
-from . import _decompose_init as init
-from . import _decompose_model as model
-from ._decompose_weights import fit_weights, neighbour_average
+from . import _ssdr_init as init
+from . import _ssdr_model as model
+from ._ssdr_weights import fit_weights, neighbour_average
 
 __all__ = ["decompose", "Decomposition", "METHODS", "frames_needed"]
 
@@ -285,14 +283,3 @@ def _result(X, Y, F, bones, st, method, diag, history) -> Decomposition:
     d.rmse = float(np.sqrt(np.einsum("fni,fni->", U - Y, U - Y) / (Y.shape[0] * Y.shape[1])))
     d.rmse_percent = 100.0 * d.rmse / diag if diag > 0 else 0.0
     return d
-
-
-class _CallableModule(types.ModuleType):
-    """This module and the function share the name ``stbs.fit.decompose``; importing the
-    module makes ``stbs.fit.decompose`` the module, so calling it calls the function."""
-
-    def __call__(self, *args, **kwargs) -> Decomposition:
-        return decompose(*args, **kwargs)
-
-
-sys.modules[__name__].__class__ = _CallableModule

@@ -366,10 +366,13 @@ class _Slots:
     """Per vertex, its top bones (heaviest first) and the helpers around their ``e``."""
 
     def __init__(self, W, E, t: np.ndarray, max_influences: int):
-        lay = top_k(W, E, max_influences=max_influences, pad=())
-        self.bone = lay.idx.T.astype(np.int64)                   # (n, m)
-        self.w = lay.w.T.astype(np.float64)
-        self.e = np.clip(lay.e.T.astype(np.float64), 0.0, 1.0)
+        lay = top_k(W, E, pad=())        # every bone of a vertex, heaviest first
+        m = min(max_influences, lay.idx.shape[0])
+        self.bone = lay.idx[:m].T.astype(np.int64)               # (n, m): the m heaviest
+        w = lay.w[:m].T.astype(np.float64)
+        total = w.sum(axis=1, keepdims=True)
+        self.w = np.divide(w, total, out=np.zeros_like(w), where=total > 0)
+        self.e = np.clip(lay.e[:m].T.astype(np.float64), 0.0, 1.0)
         k = t.size
         pos = self.e * (k - 1) if k > 1 else np.zeros_like(self.e)
         lo = np.clip(np.floor(pos), 0, max(k - 2, 0)).astype(np.int64)
@@ -607,7 +610,7 @@ def helper_joints(rig_or_V, sk: Skeleton | None = None, W=None, E=None, *, k: in
     --------
     >>> import numpy as np
     >>> import stbs
-    >>> from stbs.fit.helper_joints import helper_joints
+    >>> from stbs.fit.twist_bones import helper_joints
     >>> V, F, sk, W = stbs.shapes.cigar(8)
     >>> E = stbs.endpoint_weights(V, sk, method="projection")
     >>> helper = helper_joints(V, sk, W, E, k=3, F=F)
