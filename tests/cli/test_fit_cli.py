@@ -122,6 +122,8 @@ def test_helpers_write_a_plain_lbs_rig(capsys, arm):
      "expected .npz"),
     (["fit", "decompose", "{tmp}/nan.npz", "--bones", "2", "-o", "{tmp}/x.npz"],
      "finite values"),
+    (["fit", "decompose", "{tmp}/one.npz", "--bones", "3", "-o", "{tmp}/x.npz"],
+     "needs at least 2 frames"),
     (["fit", "endpoints", "{tmp}/arm.npz", "{tmp}/examples.npz", "--poses", "{tmp}/two.json",
       "-o", "{tmp}/x.npz"], "has 2 keys but the examples hold 12 meshes"),
     (["fit", "endpoints", "{tmp}/arm.npz", "{tmp}/small.npz", "--poses", "{tmp}/two.json",
@@ -134,6 +136,7 @@ def test_bad_input_is_one_line(capsys, arm, argv, says):
     np.savez(tmp / "anim.npz", frames=frames, rest=rig.V)
     np.savez(tmp / "nan.npz", frames=np.full((3, 4, 3), np.nan))
     np.savez(tmp / "small.npz", frames=np.zeros((2, 5, 3)))
+    np.savez(tmp / "one.npz", frames=frames[:1], rest=rig.V)
     write_clip(tmp / "two.json", stbs.Clip([(0, poses[0]), (1, poses[1])]))
     code, out, err = run(capsys, *[a.format(tmp=tmp) for a in argv])
     assert code == 2
