@@ -129,10 +129,34 @@ class Layout:
     """Per-vertex slots: ``idx`` k (n,) bone-index arrays (slot 0 the heaviest), weights
     ``w`` and endpoint weights ``e`` (n, k) (e None for lbs, dqs), rest points P (n, 3)."""
 
-    def __init__(self, xp, P, idx, w, e, b: int, W=None, cache: bool = False):
+    def __init__(self, xp, P, idx, w, e, b: int, W=None, cache: bool = False, pivots=None):
         self.xp, self.P, self.idx, self.w, self.e, self.b = xp, P, idx, w, e, b
         self.W = W
         self._X = self.affine_rows() if cache else None
+        self.groups = None
+        if pivots is not None:
+            self._group(pivots, cache)
+
+    def _group(self, pivots, cache: bool):
+        """Vertices grouped by their pivot bone (a concrete (n,) NumPy array): for the
+        ``dqs`` blend, whose hemisphere signs then depend on the group and bone only."""
+        import numpy as np
+
+        xp = self.xp
+        order = np.argsort(pivots, kind="stable")
+        bounds = np.searchsorted(pivots[order], np.arange(self.b + 1))
+        like = self.idx[0]
+        self.groups = [(g, _index(xp, order[bounds[g]:bounds[g + 1]], like))
+                       for g in range(self.b) if bounds[g + 1] > bounds[g]]
+        self.unsort = _index(xp, np.argsort(order), like)
+        self._Wg = self.group_weights() if cache else None
+
+    def group_weights(self):
+        """Per pivot group its rows of the dense weights, (n_g, b) each."""
+        if getattr(self, "_Wg", None) is not None:
+            return self._Wg
+        Wd = self.dense_weights()
+        return [self.xp.take(Wd, rows, axis=0) for _, rows in self.groups]
 
     def affine_rows(self):
         """X = [W p_x | W p_y | W p_z | W] (n, 4b): the linear blends are ``X @ table``."""
@@ -160,6 +184,12 @@ def _device(x):
     import array_api_compat
 
     return array_api_compat.device(x)
+
+
+def _index(xp, x, like):
+    import numpy as np
+
+    return xp.asarray(np.array(x, dtype=np.int64), device=_device(like))
 
 
 class _Fields:
@@ -247,6 +277,15 @@ def dqs(xp, bones: Bones, pose: PoseArrays, lay: Layout, batch: tuple):
         nb = len(batch)
         off = xp.permute_dims(off, (nb,) + tuple(range(nb)) + (nb + 1,))  # (n, *B, 3)
         P = tuple(P[i] + off[..., i] for i in range(3))
+    if lay.groups is not None:
+        blend = _grouped_dq_blend(xp, q, qd, lay, batch)
+    else:
+        blend = _slot_dq_blend(xp, F, lay)
+    return F.output(dq_apply(blend[0:4], blend[4:8], P))
+
+
+def _slot_dq_blend(xp, F, lay: Layout):
+    """Blend slot by slot, each flipped to the hemisphere of slot 0 (the pivot)."""
     r = d = piv = None
     for j in range(len(lay.idx)):
         f = F.slot(j)
@@ -260,7 +299,33 @@ def dqs(xp, bones: Bones, pose: PoseArrays, lay: Layout, batch: tuple):
             y + s * x for y, x in zip(r, real, strict=True))
         d = tuple(s * x for x in dual) if d is None else tuple(
             y + s * x for y, x in zip(d, dual, strict=True))
-    return F.output(dq_apply(r, d, P))
+    return r + d
+
+
+def _grouped_dq_blend(xp, q, qd, lay: Layout, batch: tuple):
+    """The same blend as one matrix product per pivot group.
+
+    The per-bone dual quaternions do not vary per vertex, so a vertex's hemisphere
+    signs depend only on its pivot g: ``S[g, i] = sign(q_i . q_g)``. For the vertices
+    of group g the blend is ``W_g @ (S[g] * Q)``, (n_g, b) @ (b, 8 B).
+    """
+    m = 1
+    for x in batch:
+        m *= x
+    b = lay.b
+    Q = xp.reshape(xp.stack(tuple(q[..., i] for i in range(4)) + qd, axis=-1), (m, b, 8))
+    qm = Q[..., 0:4]
+    dots = xp.sum(qm[:, :, None, :] * qm[:, None, :, :], axis=-1)                 # (m, b, b)
+    S = xp.where(dots < 0, -xp.ones_like(dots), xp.ones_like(dots))
+    Y = []
+    for (g, _), Wg in zip(lay.groups, lay.group_weights(), strict=True):
+        Qg = S[:, g, :, None] * Q                                                   # (m, b, 8)
+        Qg = xp.reshape(xp.permute_dims(Qg, (1, 0, 2)), (b, m * 8))
+        Y.append(Wg @ Qg)
+    Y = xp.take(xp.concat(Y, axis=0), lay.unsort, axis=0)                           # (n, m*8)
+    n = Y.shape[0]
+    Y = xp.permute_dims(xp.reshape(Y, (n, m, 8)), (2, 0, 1))
+    return tuple(xp.reshape(Y, (8, n) + batch))
 
 
 def _complement(xp, u):

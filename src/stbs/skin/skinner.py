@@ -203,8 +203,9 @@ class Skinner:
         # tape (PyTorch), which must be recorded anew in every call
         taped = any(bool(getattr(x, "requires_grad", False)) for x in (self._P, self._w))
         linear = self.method == "lbs" or self.method == "dqs"
-        self._lay = _core.Layout(xp, self._P, self._idx, self._w, self._e, b,
-                                 cache=linear and not taped and not self.uses_kernels)
+        cache = linear and not taped and not self.uses_kernels
+        self._lay = _core.Layout(xp, self._P, self._idx, self._w, self._e, b, cache=cache,
+                                 pivots=idx[0] if self.method == "dqs" else None)
         self._deformer = None
 
     @property
