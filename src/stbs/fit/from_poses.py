@@ -102,6 +102,8 @@ _CHUNK = 1 << 22
 #: Endpoint sweeps and joint Gauss-Newton steps per round of fit_weights.
 _INNER_SWEEPS = 3
 _JOINT_STEPS = 4
+#: Jacobi steps of the smoothness prior per W step.
+_PRIOR_STEPS = 5
 #: Most joint pair searches of the stbs-dqs descent.
 _PAIR_ROUNDS = 2
 
@@ -687,22 +689,32 @@ def _neighbour_average(F, n: int):
     return sp.diags_array(1.0 / np.maximum(deg, 1)) @ adj, deg
 
 
-def _weights_step(rig: _Rig, E, k: int, prior, lam, W_prev=None) -> np.ndarray:
+def _weights_step(rig: _Rig, E, k: int, avg, lam, W_prev=None):
     """W given E (stbs-lbs is linear in W): the normal equations of every vertex
-    accumulated over the frames, then one k-sparse simplex solve per vertex. Where the
-    k-sparse support rule does worse than ``W_prev`` (k < b), that row is kept, so the
-    step never raises the objective."""
+    accumulated over the frames, then k-sparse simplex solves per vertex. With the
+    smoothness term (``avg``, the neighbour average), the solve is repeated
+    ``_PRIOR_STEPS`` times, each with the neighbours' weights of the one before as the
+    prior (Jacobi steps; the normal equations are reused). Where the k-sparse support
+    rule does worse than the weights before (k < b), that row keeps them, so no solve
+    raises the objective. Returns W and the last prior (None without smoothing)."""
     n, b = E.shape
     X = np.stack([rig.bone_points(i, np.arange(n), E[:, i]) for i in range(b)], axis=2)
-    H, g = _normal_equations(X, rig.Y)
-    if prior is not None:
-        H[:, np.arange(b), np.arange(b)] += lam[:, None]
-        g += lam[:, None] * prior
-    W = simplex_qp(H, g, k=k)
-    if W_prev is not None:
-        worse = simplex_objective(H, g, W) > simplex_objective(H, g, W_prev)
-        W[worse] = W_prev[worse]
-    return W
+    H0, g0 = _normal_equations(X, rig.Y)
+    W, prior = W_prev, None
+    d = np.arange(b)
+    for _ in range(_PRIOR_STEPS if avg is not None else 1):
+        H, g = H0, g0
+        if avg is not None and W is not None:
+            prior = avg @ W
+            H = H0.copy()
+            H[:, d, d] += lam[:, None]
+            g = g0 + lam[:, None] * prior
+        W_new = simplex_qp(H, g, k=k)
+        if W is not None:
+            worse = simplex_objective(H, g, W_new) > simplex_objective(H, g, W)
+            W_new[worse] = W[worse]
+        W = W_new
+    return W, prior
 
 
 def _normal_equations(X: np.ndarray, y: np.ndarray):
@@ -889,19 +901,19 @@ def fit_weights(V, sk: Skeleton, poses: Sequence[Pose], frames, *, F=None,
     say(0, 0)
     active = np.array([rig.active(i) for i in range(b)])
     for it in range(iterations):
-        prior = avg @ W if (it > 0 and avg is not None and smoothness > 0) else None
         W_old, E_old = W, E.copy()
-        everything = np.arange(n)
-        obj_old = np.inf if it == 0 else float(np.sum(_objective(rig, everything, W, E, prior,
-                                                                 lam)))
-        W = _weights_step(rig, E, k, prior, lam, W_prev=W if it > 0 else None)
+        W, prior = _weights_step(rig, E, k, avg if smoothness > 0 else None, lam,
+                                 W_prev=W if it > 0 else None)
         E, _ = _descend(rig, W, E, method=method, iterations=_INNER_SWEEPS, tol=tol, rng=rng,
                         say=inner)
         for _ in range(_JOINT_STEPS):
             if _joint_step(rig, W, E, prior, lam, active) == 0:
                 break
         say(it + 1, iterations)
+        everything = np.arange(n)
         obj = float(np.sum(_objective(rig, everything, W, E, prior, lam)))
+        obj_old = np.inf if it == 0 else float(np.sum(_objective(rig, everything, W_old,
+                                                                 E_old, prior, lam)))
         if obj <= exact or it > 0 and (obj_old - obj <= tol * obj_old or (
                 float(np.abs(W - W_old).max()) <= tol
                 and float(np.abs(W * (E - E_old)).max()) <= tol)):
