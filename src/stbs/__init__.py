@@ -6,8 +6,9 @@ Deformation", SIGGRAPH Asia 2011. The names exported here are stable.
 Names are loaded on first use (PEP 562), so ``import stbs`` and ``stbs --help`` stay
 fast and numba is imported only when skinning is first needed. Subpackages: the maths
 (:mod:`stbs.geometry`, :mod:`stbs.transforms`, :mod:`stbs.skinning`, :mod:`stbs.weights`,
-:mod:`stbs.meshing`, :mod:`stbs.shapes`), the data (:mod:`stbs.rig`, :mod:`stbs.io`) and
-the front ends (:mod:`stbs.cli`, :mod:`stbs.demo`, :mod:`stbs.bench`).
+:mod:`stbs.meshing`, :mod:`stbs.shapes`; :mod:`stbs.skin`, differentiable skinning on
+PyTorch and JAX), the data (:mod:`stbs.rig`, :mod:`stbs.io`; :mod:`stbs.fit`, rigs fitted
+to examples) and the front ends (:mod:`stbs.cli`, :mod:`stbs.demo`, :mod:`stbs.bench`).
 """
 
 from __future__ import annotations
@@ -59,7 +60,7 @@ __all__ = ["Skeleton", "Pose", "forward_kinematics", "Clip", "Motion", "retarget
 
 #: Subpackages reachable as attributes (``stbs.shapes.cigar``), imported on first use.
 _SUBPACKAGES = ("geometry", "transforms", "skinning", "weights", "meshing", "shapes", "rig",
-                "io", "cli", "demo", "bench", "bake")
+                "io", "cli", "demo", "bench", "bake", "skin", "fit")
 
 
 def __getattr__(name: str):

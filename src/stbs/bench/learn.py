@@ -17,8 +17,9 @@ bones, ``--influences`` bones per vertex, endpoint weights in [0, 1]); the batch
 - ``numba``: the :class:`stbs.Deformer` of the same method called once per pose into a
   reused buffer (the NumPy path ``stbs.skin`` dispatches to for arrays without a tape).
 
-Medians of ``--repeat`` calls after warm-up calls; rounds interleave the rows, so that a
-change of the machine's load falls on all alike. ``--compile`` adds ``torch.compile``'s
+Medians of ``--repeat`` calls after warm-up calls. The kernels' rows are timed first,
+before PyTorch or JAX run anything: their thread pools keep spinning between operations
+and would slow the kernels' own threads. ``--compile`` adds ``torch.compile``'s
 forward (its compile time reported apart); ``--device cuda`` runs the PyTorch rows on a
 GPU where one is present.
 """
@@ -304,7 +305,11 @@ def collect(args: argparse.Namespace, *, log=lambda msg: None) -> dict:
     methods = _names(args.methods, METHODS, "methods")
     backends = _names(args.backends, ("torch", "jax"), "backends")
     case = _Case(args)
+    # the kernels first, before PyTorch or JAX run anything: their OpenMP threads keep
+    # spinning after each operation and would slow numba's threads several times over
     timers = _numba_rows(case, methods, args.repeat)
+    log("timing the compiled kernels")
+    seconds = {key: fn() for key, fn in timers.items()}
     notes = []
     versions = [f"numpy {np.__version__}"]
     for name, make in (("torch", _torch_rows), ("jax", _jax_rows)):
@@ -318,8 +323,8 @@ def collect(args: argparse.Namespace, *, log=lambda msg: None) -> dict:
             continue
         versions.append(f"{name} {mod.__version__}")
         timers.update(make(case, methods, args))
-    log(f"{len(timers)} rows, {args.repeat} timed calls each")
-    seconds = {key: fn() for key, fn in timers.items()}
+    log(f"{len(timers) - len(seconds)} more rows, {args.repeat} timed calls each")
+    seconds.update({key: fn() for key, fn in timers.items() if key not in seconds})
     n, B = len(case.rig.V), args.batch
     rows = []
     for (m, backend, kind), t in seconds.items():
