@@ -252,6 +252,26 @@ class Pose:
         return f"Pose({self.skeleton!r})"
 
 
+def pose_list(poses, sk: Skeleton, *, name: str = "poses") -> list[Pose]:
+    """``poses`` as a non-empty list of poses of ``sk``, checked (TypeError: not a
+    sequence of :class:`Pose`; ValueError: empty, or a pose of another skeleton)."""
+    if isinstance(poses, Pose) or isinstance(poses, (str, bytes)) or not hasattr(
+            poses, "__iter__"):
+        raise TypeError(f"{name} must be a sequence of stbs.Pose, got "
+                        f"{type(poses).__name__}" + ("; wrap a single Pose in a list"
+                                                     if isinstance(poses, Pose) else ""))
+    poses = list(poses)
+    if not poses:
+        raise ValueError(f"{name} must hold at least one stbs.Pose, got none")
+    for k, pose in enumerate(poses):
+        if not isinstance(pose, Pose):
+            raise TypeError(f"{name}[{k}] must be a stbs.Pose, got {type(pose).__name__}")
+        if pose.skeleton != sk:
+            raise ValueError(f"{name}[{k}] must be a pose of the skeleton {sk!r}, got a pose "
+                             f"of {pose.skeleton!r}")
+    return poses
+
+
 def _hang_frames(sk: Skeleton, R, theta, idx) -> np.ndarray:
     """(..., k, d, d) frames ``F_p = R_p K_p(t_c)`` the bones ``idx`` hang in."""
     p = sk.parents[idx]

@@ -402,9 +402,10 @@ def test_bad_input_is_refused_with_the_argument_named(bar_rig):
     with pytest.raises(ValueError, match="n_poses must be an int >= 1, got 0"):
         helper_joints(bar_rig, n_poses=0)
     other = chain()
-    with pytest.raises(ValueError, match=r"poses\[0\] must be a pose of the rig's skeleton"):
+    with pytest.raises(ValueError, match=r"poses\[0\] must be a pose of the skeleton"):
         helper_joints(bar_rig, poses=[stbs.Pose.rest(other)])
-    with pytest.raises(TypeError, match="poses must be a non-empty sequence of stbs.Pose"):
+    with pytest.raises(TypeError, match="poses must be a sequence of stbs.Pose, got Pose; "
+                                        "wrap a single Pose in a list"):
         helper_joints(bar_rig, poses=stbs.Pose.rest(sk))
     helper = helper_joints(bar_rig, k=1, fit="hat", n_poses=2)
     with pytest.raises(ValueError, match="pose must be a pose of the STBS skeleton"):

@@ -83,7 +83,7 @@ import scipy.sparse as sp
 
 from .. import _checks
 from .. import transforms as tf
-from ..pose import Pose
+from ..pose import Pose, pose_list
 from ..skeleton import Skeleton
 from ._lsq import simplex_objective, simplex_qp
 
@@ -113,16 +113,7 @@ def _inputs(V, sk, poses, frames):
     """Checked ``V`` (n, d) and ``frames`` (m, n, d) float64, poses as a list."""
     V = _checks.skeleton(sk, V)
     n, d = V.shape
-    if isinstance(poses, Pose):
-        raise TypeError("poses must be a sequence of stbs.Pose (one per frame), got a "
-                        "single Pose; wrap it in a list")
-    poses = list(poses)
-    for f, pose in enumerate(poses):
-        if not isinstance(pose, Pose):
-            raise TypeError(f"poses[{f}] must be a stbs.Pose, got {type(pose).__name__}")
-        if pose.skeleton != sk:
-            raise ValueError(f"poses[{f}] must be a pose of the skeleton sk, got a pose of "
-                             f"{pose.skeleton!r}")
+    poses = pose_list(poses, sk)
     try:
         Y = np.asarray(frames, dtype=np.float64)
     except (TypeError, ValueError) as exc:

@@ -60,7 +60,7 @@ import scipy.sparse as sp
 from .. import _checks
 from .. import transforms as tf
 from ..clip import Clip
-from ..pose import Pose, fk_arrays, joint_twists, local_arrays
+from ..pose import Pose, fk_arrays, joint_twists, local_arrays, pose_list
 from ..rig.model import Rig
 from ..skeleton import Skeleton
 from ..skinning.layout import top_k
@@ -433,15 +433,7 @@ def _sampled_poses(sk: Skeleton, n_poses: int, seed) -> tuple[np.ndarray, ...]:
 
 
 def _pose_arrays(sk: Skeleton, poses) -> tuple[np.ndarray, ...]:
-    if isinstance(poses, Pose) or not isinstance(poses, Sequence) or len(poses) == 0:
-        raise TypeError(f"poses must be a non-empty sequence of stbs.Pose, got "
-                        f"{type(poses).__name__}")
-    for q, p in enumerate(poses):
-        if not isinstance(p, Pose):
-            raise TypeError(f"poses[{q}] must be a stbs.Pose, got {type(p).__name__}")
-        if p.skeleton != sk:
-            raise ValueError(f"poses[{q}] must be a pose of the rig's skeleton ({sk!r}), got "
-                             f"one of {p.skeleton!r}")
+    poses = pose_list(poses, sk)
     return tuple(np.stack([getattr(p, a) for p in poses])
                  for a in ("rotations", "origins", "stretch", "twist"))
 
