@@ -301,7 +301,7 @@ def test_seed_orders_the_sweeps_only(tube_rig):
     ("nan", "frames must be finite, got nan at frame 1, vertex 5"),
     ("W_shape", r"W must have shape \(320, 3\), got \(320, 2\)"),
     ("method", "method must be one of 'stbs-lbs', 'stbs-dqs', got 'dqs'"),
-    ("empty", "at least one example mesh, got 0 frames"),
+    ("empty", "poses must hold at least one stbs.Pose, got none"),
     ("iterations", "iterations must be a positive integer, got 0"),
     ("pose_type", r"poses\[0\] must be a stbs.Pose"),
 ])
