@@ -239,9 +239,7 @@ def _helpers(args) -> int:
     if args.output.lower().endswith(".npz"):
         save_rig(args.output, helper.rig())
     else:
-        from ..io import write_gltf
-
-        write_gltf(args.output, helper.rig(), helper.clip(clip) if clip else None)
+        helper.write_gltf(args.output, clip)
     print(f"wrote {args.output}: {rig.skeleton.n_bones} bones as "
           f"{helper.skeleton.n_bones} LBS joints ({args.k} per bone)"
           + (f", clip of {len(clip.keys)} keys" if clip else ""))
