@@ -284,22 +284,24 @@ def dqs(xp, bones: Bones, pose: PoseArrays, lay: Layout, batch: tuple):
     return F.output(dq_apply(blend[0:4], blend[4:8], P))
 
 
+def _blend_add(xp, acc, real, dual, wj):
+    """``acc`` (blended real, blended dual, pivot) with one more slot's dual quaternion,
+    weighted by ``wj`` and flipped to the hemisphere of the first slot's (the pivot)."""
+    if acc is None:
+        return tuple(wj * x for x in real), tuple(wj * x for x in dual), real
+    r, d, piv = acc
+    s = xp.where(vdot(real, piv) < 0, -wj, wj)
+    return (tuple(y + s * x for y, x in zip(r, real, strict=True)),
+            tuple(y + s * x for y, x in zip(d, dual, strict=True)), piv)
+
+
 def _slot_dq_blend(xp, F, lay: Layout):
     """Blend slot by slot, each flipped to the hemisphere of slot 0 (the pivot)."""
-    r = d = piv = None
+    acc = None
     for j in range(len(lay.idx)):
         f = F.slot(j)
-        real, dual = f[0:4], f[4:8]
-        wj = F.vertex(lay.w[:, j])
-        if piv is None:
-            piv, s = real, wj
-        else:
-            s = xp.where(vdot(real, piv) < 0, -wj, wj)
-        r = tuple(s * x for x in real) if r is None else tuple(
-            y + s * x for y, x in zip(r, real, strict=True))
-        d = tuple(s * x for x in dual) if d is None else tuple(
-            y + s * x for y, x in zip(d, dual, strict=True))
-    return r + d
+        acc = _blend_add(xp, acc, f[0:4], f[4:8], F.vertex(lay.w[:, j]))
+    return acc[0] + acc[1]
 
 
 def _grouped_dq_blend(xp, q, qd, lay: Layout, batch: tuple):
@@ -411,7 +413,7 @@ def stbs_dqs(xp, bones: Bones, pose: PoseArrays, lay: Layout, batch: tuple):
         th = pose.theta
         fields += [0.5 * th[..., 0], 0.5 * (th[..., 1] - th[..., 0])]
     F = _Fields(xp, fields, batch, lay)
-    r = d = piv = None
+    acc = None
     for j in range(len(lay.idx)):
         f = F.slot(j)
         ej = F.vertex(lay.e[:, j])
@@ -431,16 +433,8 @@ def stbs_dqs(xp, bones: Bones, pose: PoseArrays, lay: Layout, batch: tuple):
             if stretch:
                 ec = ej * f[16]
                 dual = tuple(z + ec * y for z, y in zip(dual, r2, strict=True))
-        wj = F.vertex(lay.w[:, j])
-        if piv is None:
-            piv, s = real, wj
-        else:
-            s = xp.where(vdot(real, piv) < 0, -wj, wj)
-        r = tuple(s * x for x in real) if r is None else tuple(
-            y + s * x for y, x in zip(r, real, strict=True))
-        d = tuple(s * x for x in dual) if d is None else tuple(
-            y + s * x for y, x in zip(d, dual, strict=True))
-    return F.output(dq_apply(r, d, F.points()))
+        acc = _blend_add(xp, acc, real, dual, F.vertex(lay.w[:, j]))
+    return F.output(dq_apply(acc[0], acc[1], F.points()))
 
 
 METHOD_FUNCS = {"lbs": lbs, "dqs": dqs, "stbs-lbs": stbs_lbs, "stbs-dqs": stbs_dqs}
