@@ -70,6 +70,42 @@ def test_rest_pose_reproduces_V_and_bone_order_does_not_matter(method):
     assert inv.size == 5
 
 
+@pytest.mark.parametrize("method", stbs.METHODS)
+def test_vertices_in_chunks_give_the_same_skinning_and_gradients(method, monkeypatch):
+    """Eager CPU calls take the vertices in cache-sized chunks: many small chunks (the dqs
+    pivot groups cut across them) must give the one-piece result and gradients."""
+    torch = pytest.importorskip("torch")
+    from stbs.skin import _core
+
+    rng, sk, V, W, E = random_rig(7, 3, n=200, b=6)
+    R, O, S, T = pose_stack(rng, sk, 5)
+
+    def run(chunk_elements):
+        monkeypatch.setattr(_core, "CHUNK_ELEMENTS", chunk_elements)
+        leaves = [torch.tensor(x, requires_grad=True) for x in (R, O, S, T)]
+        Wt = torch.tensor(W, requires_grad=True)
+        U = Skinner(V, sk, Wt, E, method=method, backend="torch")(*leaves)
+        (U * torch.tensor(V)).sum().backward()
+        return U.detach().numpy(), [None if x.grad is None else x.grad.numpy()
+                                    for x in leaves + [Wt]]
+
+    whole, g_whole = run(10**9)
+    parts, g_parts = run(7 * len(R))           # chunks of 7 vertices
+    assert _core.CHUNK_ELEMENTS // len(R) == 7
+    for i in range(len(R)):
+        pose = stbs.Pose(sk, rotations=R[i], origins=O[i], stretch=S[i], twist=T[i])
+        np.testing.assert_allclose(parts[i], reference_deform(V, pose, W, E, method),
+                                   atol=1e-12)
+    np.testing.assert_allclose(parts, whole, atol=1e-12)
+    assert sum(g is not None for g in g_parts) >= 4
+    for a, b in zip(g_parts, g_whole, strict=True):
+        assert (a is None) == (b is None)
+        if a is not None:
+            np.testing.assert_allclose(a, b, atol=1e-10)
+    arr = Skinner(V, sk, W, E, method=method, engine="array")(R, O, S, T)   # NumPy, chunked
+    np.testing.assert_allclose(arr, whole, atol=1e-12)
+
+
 @pytest.mark.parametrize("backend", ["numpy", "torch"])
 def test_pose_method_and_quaternions_match_matrices(backend):
     pytest.importorskip(backend)

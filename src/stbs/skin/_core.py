@@ -1,20 +1,27 @@
-"""The four methods on the array API: per-bone tables, then one gather-and-blend pass.
+"""The four methods on the array API: per-bone tables, then per-vertex blends in chunks.
 
 Everything is 3D here; 2D rigs arrive embedded (z = 0, rotations about z). A pose
 arrives as per-bone arrays with leading batch axes ``*B`` (already broadcast to one
 shape); the weight layout as ``k`` slots per vertex, slot 0 the heaviest bone (the
 pivot of the dual-quaternion blends).
 
-Layout, chosen for speed under autograd: a method builds its per-bone constants as a
-list of scalar *fields* (each (*B, b)), stacked into one (m, b, *B) table. Each slot
-gathers the table's rows for all vertices at once (``take`` along the bone axis, a copy
-of contiguous batch rows) and splits it back into m fields of shape (n, *B) by
-iterating over the first axis (PyTorch's ``unbind``, whose backward is one ``stack``:
-slicing a packed table instead costs a zero-filled full-size gradient per slice). All
-per-vertex algebra is then written component by component on those fields: closed-form
-quaternion products, no (n, k, 4, 4) matrices and no per-vertex 3x3 twist matrices.
-The linear blends (``lbs``, and the rest-space stretch of ``dqs``) are one matrix
-product ``[W p_x | W p_y | W p_z | W] @ table`` instead.
+Layout, chosen for eager speed and cheap gradients:
+
+- per-vertex arrays are ``(n, c, *B)``: vertex, then ``c`` components (1 for scalars,
+  3 for points, 4 for quaternions), then the batch; per-vertex constants are
+  ``(n, c, 1, ...)`` and broadcast against the batch;
+- a method first builds its per-bone fields and packs each group of them into a
+  ``(b, c * prod(B))`` table; a slot then gathers its bones' rows (one ``take`` along
+  axis 0 of contiguous rows, whose gradient is a scatter-add into the small table);
+- the linear parts of the blends (all of ``lbs``; the rest-space stretch of ``dqs``;
+  the translation, stretch and untwisted parts of ``stbs-lbs``) are one matrix product
+  of dense ``(n, q b)`` weight rows with a ``(q b, 3 prod(B))`` table;
+- the ``dqs`` blend is a matrix product per group of vertices sharing a pivot bone (their
+  hemisphere signs then depend on the group and bone only), over vertices sorted by
+  pivot;
+- in eager mode on a CPU the vertices are taken in chunks small enough for their
+  temporaries to stay in cache (fresh multi-megabyte arrays cost a page fault per page);
+  traced code (``torch.compile``, ``jax.jit``), JAX and GPUs take all vertices at once.
 
 Which optional inputs are present (stretch, twist) is static: an absent one drops its
 terms from the traced graph.
@@ -22,19 +29,16 @@ terms from the traced graph.
 
 from __future__ import annotations
 
+import numpy as np
+
+from . import _backend as bk
 from .rotations import matrix_to_quat, quat_to_matrix
+
+#: elements (vertices x poses) of one chunk's per-vertex arrays in eager CPU mode
+CHUNK_ELEMENTS = 1 << 15
 
 # ------------------------------------------------------------------ component algebra
 # quaternions are 4-tuples (w, x, y, z) and vectors 3-tuples of equally shaped arrays
-
-
-def qmul(p, q):
-    pw, px, py, pz = p
-    qw, qx, qy, qz = q
-    return (pw * qw - px * qx - py * qy - pz * qz,
-            pw * qx + px * qw + py * qz - pz * qy,
-            pw * qy - px * qz + py * qw + pz * qx,
-            pw * qz + px * qy - py * qx + pz * qw)
 
 
 def qmul_pure(p, v):
@@ -61,13 +65,6 @@ def vcross(a, b):
     return (a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
 
 
-def vdot(a, b):
-    out = a[0] * b[0]
-    for x, y in zip(a[1:], b[1:], strict=True):
-        out = out + x * y
-    return out
-
-
 def rotate(q, x):
     """Rotate vector x by unit quaternion q."""
     w, v = q[0], q[1:]
@@ -76,20 +73,22 @@ def rotate(q, x):
     return tuple(x[i] + w * t[i] + c[i] for i in range(3))
 
 
-def dq_apply(r, d, p):
-    """Apply blended (not normalised) dual quaternions ``(r, d)`` to points p.
+def dq_apply(xp, r, d, p):
+    """Apply blended (not normalised) dual quaternions to points: (nc, 3, *B).
 
-    With ``r = (w, v)``, ``d = (dw, dv)`` and ``|r|^2 = n2`` the normalised map is
+    ``r``, ``d`` (nc, 4, *B), ``p`` (nc, 3, ...) broadcasting against them. With
+    ``r = (w, v)``, ``d = (dw, dv)`` and ``|r|^2 = n2`` the normalised map is
     ``p + (2 / n2) (v x (w p + v x p + dv) + w dv - dw v)``: the rotation by ``r / |r|``
     plus the translation ``2 vec(d r*) / n2``. Not defined where ``r = 0``.
     """
-    w, v = r[0], r[1:]
-    dw, dv = d[0], d[1:]
-    s = 2.0 / vdot(r, r)
-    vp = vcross(v, p)
-    inner = tuple(w * p[i] + vp[i] + dv[i] for i in range(3))
+    w, v = r[:, 0:1], (r[:, 1:2], r[:, 2:3], r[:, 3:4])
+    dw, dv = d[:, 0:1], (d[:, 1:2], d[:, 2:3], d[:, 3:4])
+    pc = (p[:, 0:1], p[:, 1:2], p[:, 2:3])
+    s = 2.0 / xp.sum(r * r, axis=1, keepdims=True)
+    vp = vcross(v, pc)
+    inner = tuple(w * pc[i] + vp[i] + dv[i] for i in range(3))
     c = vcross(v, inner)
-    return tuple(p[i] + s * (c[i] + w * dv[i] - dw * v[i]) for i in range(3))
+    return p + s * xp.concat([c[i] + w * dv[i] - dw * v[i] for i in range(3)], axis=1)
 
 
 # ------------------------------------------------------------------ inputs
@@ -127,55 +126,70 @@ def _fields(x, k: int):
 
 class Layout:
     """Per-vertex slots: ``idx`` k (n,) bone-index arrays (slot 0 the heaviest), weights
-    ``w`` and endpoint weights ``e`` (n, k) (e None for lbs, dqs), rest points P (n, 3)."""
+    ``w`` and endpoint weights ``e`` (n, k) (e None for lbs, dqs), rest points P (n, 3).
 
-    def __init__(self, xp, P, idx, w, e, b: int, W=None, cache: bool = False, pivots=None):
+    ``W``, ``E``: the dense (n, b) weights where the caller has them (else scattered from
+    the slots). ``cache``: keep what depends on these arrays alone between calls (they
+    carry no gradient tape). ``pivots``: a concrete (n,) NumPy array of each vertex's
+    pivot bone, for the grouped ``dqs`` blend.
+    """
+
+    def __init__(self, xp, P, idx, w, e, b: int, W=None, E=None, cache: bool = False,
+                 pivots=None):
         self.xp, self.P, self.idx, self.w, self.e, self.b = xp, P, idx, w, e, b
-        self.W = W
-        self._X = self.affine_rows() if cache else None
-        self.groups = None
+        self.n = P.shape[0]
+        self.W, self.E = W, E
+        self.cache = cache
+        self._memo: dict = {}
+        self.order = self.unsort = self.groups = None
         if pivots is not None:
-            self._group(pivots, cache)
+            order = np.argsort(pivots, kind="stable")
+            bounds = np.searchsorted(pivots[order], np.arange(b + 1))
+            self.groups = [(g, int(bounds[g]), int(bounds[g + 1])) for g in range(b)
+                           if bounds[g + 1] > bounds[g]]
+            self.order = bk.index(xp, order, idx[0])
+            self.unsort = bk.index(xp, np.argsort(order), idx[0])
 
-    def _group(self, pivots, cache: bool):
-        """Vertices grouped by their pivot bone (a concrete (n,) NumPy array): for the
-        ``dqs`` blend, whose hemisphere signs then depend on the group and bone only."""
-        import numpy as np
+    def memo(self, key, make):
+        """``make()``, kept under ``key`` when the layout caches."""
+        if not self.cache:
+            return make()
+        if key not in self._memo:
+            self._memo[key] = make()
+        return self._memo[key]
 
-        xp = self.xp
-        order = np.argsort(pivots, kind="stable")
-        bounds = np.searchsorted(pivots[order], np.arange(self.b + 1))
-        like = self.idx[0]
-        self.groups = [(g, _index(xp, order[bounds[g]:bounds[g + 1]], like))
-                       for g in range(self.b) if bounds[g + 1] > bounds[g]]
-        self.unsort = _index(xp, np.argsort(order), like)
-        self._Wg = self.group_weights() if cache else None
-
-    def group_weights(self):
-        """Per pivot group its rows of the dense weights, (n_g, b) each."""
-        if getattr(self, "_Wg", None) is not None:
-            return self._Wg
-        Wd = self.dense_weights()
-        return [self.xp.take(Wd, rows, axis=0) for _, rows in self.groups]
+    def sorted_rows(self, key, x):
+        """(n, ...) rows of x in pivot order."""
+        return self.memo(("sorted", key), lambda: self.xp.take(x, self.order, axis=0))
 
     def affine_rows(self):
-        """X = [W p_x | W p_y | W p_z | W] (n, 4b): the linear blends are ``X @ table``."""
-        if getattr(self, "_X", None) is not None:
-            return self._X
-        xp, P = self.xp, self.P
-        Wd = self.dense_weights()
-        return xp.concat([Wd * P[:, 0:1], Wd * P[:, 1:2], Wd * P[:, 2:3], Wd], axis=1)
+        """X = [W p_x | W p_y | W p_z | W] (n, 4b): the affine blends are ``X @ table``."""
+        def make():
+            P, Wd = self.P, self.dense_weights()
+            return self.xp.concat([Wd * P[:, 0:1], Wd * P[:, 1:2], Wd * P[:, 2:3], Wd],
+                                  axis=1)
+        return self.memo("affine", make)
 
     def dense_weights(self):
         """(n, b) weights scattered from the slots (differentiable in ``w``)."""
-        xp = self.xp
         if self.W is not None:
             return self.W
+        return self.memo("W", lambda: self._scatter(self.w))
+
+    def weighted_endpoints(self):
+        """(n, b) products ``w e`` (from the slots: differentiable in ``w`` and ``e``; a
+        padded slot, of weight 0, adds nothing even where it repeats a bone)."""
+        if self.E is not None:
+            return self.dense_weights() * self.E
+        return self.memo("WE", lambda: self._scatter(self.w * self.e))
+
+    def _scatter(self, vals):
+        xp = self.xp
         bones = xp.arange(self.b, dtype=self.idx[0].dtype, device=_device(self.idx[0]))
         out = None
         for j, ij in enumerate(self.idx):
-            hot = xp.where(ij[:, None] == bones[None, :], self.w[:, j:j + 1],
-                           xp.zeros_like(self.w[:, j:j + 1]))
+            hot = xp.where(ij[:, None] == bones[None, :], vals[:, j:j + 1],
+                           xp.zeros_like(vals[:, j:j + 1]))
             out = hot if out is None else out + hot
         return out
 
@@ -186,148 +200,177 @@ def _device(x):
     return array_api_compat.device(x)
 
 
-def _index(xp, x, like):
-    import numpy as np
+class _Tables:
+    """Per-bone fields packed for row gathers, and per-vertex shapes for one batch."""
 
-    return xp.asarray(np.array(x, dtype=np.int64), device=_device(like))
-
-
-class _Fields:
-    """Gather per-bone fields for one slot and shape per-vertex arrays for the batch."""
-
-    def __init__(self, xp, fields, batch: tuple, lay: Layout):
-        self.xp, self.batch, self.lay = xp, batch, lay
-        shape = batch + (lay.b,)
-        T = xp.stack([xp.broadcast_to(f, shape) for f in fields], axis=0)   # (m, *B, b)
-        nd = T.ndim
-        self.T = xp.permute_dims(T, (0, nd - 1) + tuple(range(1, nd - 1)))  # (m, b, *B)
+    def __init__(self, xp, batch: tuple, b: int):
+        self.xp, self.batch, self.b = xp, batch, b
+        self.m = bk.prod(batch)
         self.tail = (1,) * len(batch)
+        self._index_select = None
+        if bk.is_torch(xp):     # the compat layer's take adds a negative-index pass
+            import torch
 
-    def slot(self, j: int):
-        """The m fields of slot j, each (n, *B)."""
-        return tuple(self.xp.take(self.T, self.lay.idx[j], axis=1))
+            self._index_select = torch.index_select
+
+    def pack(self, X):
+        """(*B, b, c) fields (or anything broadcasting to them) to a (b, c m) table."""
+        xp, nb = self.xp, len(self.batch)
+        c = X.shape[-1]
+        X = xp.broadcast_to(X, self.batch + (self.b, c))
+        X = xp.permute_dims(X, (nb, nb + 1) + tuple(range(nb)))          # (b, c, *B)
+        return xp.reshape(X, (self.b, c * self.m))
+
+    def pack1(self, x):
+        """(*B, b) scalar fields to a (b, m) table."""
+        return self.pack(self.xp.expand_dims(x, axis=-1))
+
+    def gather(self, T, idx):
+        """Rows ``idx`` (nc,) of a packed table as (nc, c, *B)."""
+        if self._index_select is not None:
+            G = self._index_select(T, 0, idx)
+        else:
+            G = self.xp.take(T, idx, axis=0)
+        return self.xp.reshape(G, (idx.shape[0], T.shape[1] // self.m) + self.batch)
+
+    def pack_many(self, fields):
+        """Several (*B, b, c_f) field groups as one (b, sum c_f m) table and the sizes."""
+        return (self.xp.concat([self.pack(f) for f in fields], axis=1),
+                tuple(f.shape[-1] for f in fields))
+
+    def gather_many(self, packed, idx):
+        """Rows ``idx`` of a :meth:`pack_many` table as its (nc, c_f, *B) groups."""
+        T, sizes = packed
+        G = self.gather(T, idx)
+        if self._index_select is not None:      # split's gradient is one concat
+            import torch
+
+            return torch.split(G, sizes, dim=1)
+        out, k = [], 0
+        for c in sizes:
+            out.append(G[:, k:k + c])
+            k += c
+        return out
+
+    def columns(self, x):
+        """The k columns of per-vertex, per-slot values x (n, k) as (n, 1, 1, ...)."""
+        return [self.vertex(x[:, j]) for j in range(x.shape[1])]
+
+    def rows(self, X, T):
+        """Dense rows X (nc, q b) times a packed (q b, 3 m) table: (nc, 3, *B)."""
+        return self.xp.reshape(X @ T, (X.shape[0], 3) + self.batch)
 
     def vertex(self, x):
-        """(n,) per-vertex array to (n, 1, ..., 1) to broadcast against the batch."""
-        return self.xp.reshape(x, (x.shape[0],) + self.tail)
+        """(nc,) per-vertex values to (nc, 1, 1, ...)."""
+        return self.xp.reshape(x, (x.shape[0], 1) + self.tail)
 
-    def output(self, comps):
-        """Three (n, *B) fields to (*B, n, 3)."""
-        xp = self.xp
-        U = xp.stack(comps, axis=-1)                                     # (n, *B, 3)
-        nd = U.ndim
-        return xp.permute_dims(U, tuple(range(1, nd - 1)) + (0, nd - 1))
+    def points(self, P):
+        """(nc, 3) rest points to (nc, 3, 1, ...)."""
+        return self.xp.reshape(P, (P.shape[0], 3) + self.tail)
 
-    def points(self):
-        return tuple(self.vertex(self.lay.P[:, i]) for i in range(3))
+    def affine(self, M, t):
+        """The (4b, 3m) table of ``p -> M_i p + t_i`` for :meth:`Layout.affine_rows`:
+        rows ``c b + i`` hold M_i's column c, rows ``3 b + i`` hold t_i."""
+        return self.xp.concat([self.pack(M[..., :, :, c]) for c in range(3)] + [self.pack(t)],
+                              axis=0)
 
 
-def _affine_blend(xp, lay: Layout, M, t, batch: tuple):
-    """``sum_i w_i (M_i p + t_i)`` for all vertices as one matrix product: (*B, n, 3).
-
-    M (*B, b, 3, 3) and t (*B, b, 3); X = [W p_x | W p_y | W p_z | W] (n, 4b).
-    """
-    X = lay.affine_rows()
-    # rows c*b + i hold M_i[:, c] (the column multiplying p_c), rows 3b + i hold t_i
-    T = xp.concat([M[..., :, :, 0], M[..., :, :, 1], M[..., :, :, 2], t], axis=-2)
-    nb = len(batch)
-    if nb == 0:
-        return X @ T
-    T2 = xp.permute_dims(T, (nb,) + tuple(range(nb)) + (nb + 1,))        # (4b, *B, 3)
-    m = 1
-    for s in batch:
-        m *= s
-    Y = X @ xp.reshape(T2, (T2.shape[0], m * 3))                          # (n, B*3)
-    Y = xp.reshape(Y, (X.shape[0],) + batch + (3,))
-    return xp.permute_dims(Y, tuple(range(1, nb + 1)) + (0, nb + 1))
+def _chunk_rows(xp, lay: Layout, m: int) -> int:
+    """Vertices per chunk: all of them unless eager on a CPU (NumPy or PyTorch)."""
+    if bk.is_torch(xp):
+        if lay.P.device.type != "cpu" or bk.is_traced(lay.P):
+            return max(lay.n, 1)
+    elif not bk.is_numpy(xp):
+        return max(lay.n, 1)
+    return max(1, CHUNK_ELEMENTS // max(m, 1))
 
 
 # ------------------------------------------------------------------ methods
-def lbs(xp, bones: Bones, pose: PoseArrays, lay: Layout, batch: tuple):
-    """Eq. 1-3: ``sum_i w_i (a'_i + R_i S_i (p - a_i))``."""
+# Each method returns (plan, chunked): plan(c0, c1) gives vertices c0:c1 as (nc, 3, *B)
+
+
+def lbs(xp, bones: Bones, pose: PoseArrays, lay: Layout, T: _Tables):
+    """Eq. 1-3: ``sum_i w_i (a'_i + R_i S_i (p - a_i))``, one matrix product."""
     R = pose.matrices(xp)
     u, a = bones.u, bones.a
     if pose.sigma is not None:
         Ru = xp.sum(R * u[:, None, :], axis=-1)
         R = R + ((pose.sigma - 1.0)[..., None, None] * Ru[..., :, None]) * u[:, None, :]
     t = pose.O - xp.sum(R * a[:, None, :], axis=-1)
-    return _affine_blend(xp, lay, R, t, batch)
+    X, tab = lay.affine_rows(), T.affine(R, t)
+    return (lambda c0, c1: T.rows(X[c0:c1], tab)), False
 
 
-def _stretch_offsets(xp, bones: Bones, pose: PoseArrays, lay: Layout, batch: tuple):
-    """``sum_i w_i (S_i - I)(p - a_i)``, S_i blended linearly in rest space: (*B, n, 3)."""
+def _stretch_table(xp, bones: Bones, pose: PoseArrays, T: _Tables):
+    """The affine table of ``p -> (S_i - I)(p - a_i)`` (stretch in rest space)."""
     u = bones.u
     c = (pose.sigma - 1.0)[..., None] * u                                 # (*B, b, 3)
-    M = c[..., :, None] * u[:, None, :]
-    t = -c * xp.sum(u * bones.a, axis=-1)[:, None]
-    return _affine_blend(xp, lay, M, t, batch)
+    return T.affine(c[..., :, None] * u[:, None, :],
+                    -c * xp.sum(u * bones.a, axis=-1)[:, None])
 
 
-def dqs(xp, bones: Bones, pose: PoseArrays, lay: Layout, batch: tuple):
-    """Rigid parts blended as dual quaternions (pivot hemisphere), stretch linearly first."""
+def dqs(xp, bones: Bones, pose: PoseArrays, lay: Layout, T: _Tables):
+    """Rigid parts blended as dual quaternions (pivot hemisphere), stretch linearly first.
+
+    The per-bone dual quaternions do not vary per vertex, so a vertex's hemisphere signs
+    depend only on its pivot g: ``S[g, i] = sign(q_i . q_g)``, and for the vertices of
+    group g the blend is ``W_g @ (S[g] * Q)``. Vertices are taken in pivot order.
+    """
     q = pose.quats(xp)
     qf = _fields(q, 4)
     a = _fields(bones.a, 3)
     t = tuple(o - r for o, r in zip(_fields(pose.O, 3), rotate(qf, a), strict=True))
-    qd = tuple(0.5 * x for x in pure_qmul(t, qf))
-    F = _Fields(xp, qf + qd, batch, lay)
-    P = F.points()
-    if pose.sigma is not None:
-        off = _stretch_offsets(xp, bones, pose, lay, batch)               # (*B, n, 3)
-        nb = len(batch)
-        off = xp.permute_dims(off, (nb,) + tuple(range(nb)) + (nb + 1,))  # (n, *B, 3)
-        P = tuple(P[i] + off[..., i] for i in range(3))
-    if lay.groups is not None:
-        blend = _grouped_dq_blend(xp, q, qd, lay, batch)
-    else:
-        blend = _slot_dq_blend(xp, F, lay)
-    return F.output(dq_apply(blend[0:4], blend[4:8], P))
+    qd = xp.stack(tuple(0.5 * x for x in pure_qmul(t, qf)), axis=-1)
+    stretch = pose.sigma is not None
+    tab_s = _stretch_table(xp, bones, pose, T) if stretch else None
+    if lay.groups is None:      # pivots not known ahead (traced weights): slot by slot
+        TQ, TQD = T.pack(q), T.pack(qd)
+        X = lay.affine_rows() if stretch else None
 
+        def slot(j, c0, c1):
+            i = lay.idx[j][c0:c1]
+            return T.gather(TQ, i), T.gather(TQD, i)
 
-def _blend_add(xp, acc, real, dual, wj):
-    """``acc`` (blended real, blended dual, pivot) with one more slot's dual quaternion,
-    weighted by ``wj`` and flipped to the hemisphere of the first slot's (the pivot)."""
-    if acc is None:
-        return tuple(wj * x for x in real), tuple(wj * x for x in dual), real
-    r, d, piv = acc
-    s = xp.where(vdot(real, piv) < 0, -wj, wj)
-    return (tuple(y + s * x for y, x in zip(r, real, strict=True)),
-            tuple(y + s * x for y, x in zip(d, dual, strict=True)), piv)
+        def plan(c0, c1):
+            p = T.points(lay.P[c0:c1])
+            if stretch:
+                p = p + T.rows(X[c0:c1], tab_s)
+            return dq_apply(xp, *_dq_blend(xp, T, lay, slot, c0, c1), p)
 
-
-def _slot_dq_blend(xp, F, lay: Layout):
-    """Blend slot by slot, each flipped to the hemisphere of slot 0 (the pivot)."""
-    acc = None
-    for j in range(len(lay.idx)):
-        f = F.slot(j)
-        acc = _blend_add(xp, acc, f[0:4], f[4:8], F.vertex(lay.w[:, j]))
-    return acc[0] + acc[1]
-
-
-def _grouped_dq_blend(xp, q, qd, lay: Layout, batch: tuple):
-    """The same blend as one matrix product per pivot group.
-
-    The per-bone dual quaternions do not vary per vertex, so a vertex's hemisphere
-    signs depend only on its pivot g: ``S[g, i] = sign(q_i . q_g)``. For the vertices
-    of group g the blend is ``W_g @ (S[g] * Q)``, (n_g, b) @ (b, 8 B).
-    """
-    m = 1
-    for x in batch:
-        m *= x
-    b = lay.b
-    Q = xp.reshape(xp.stack(tuple(q[..., i] for i in range(4)) + qd, axis=-1), (m, b, 8))
-    qm = Q[..., 0:4]
-    dots = xp.sum(qm[:, :, None, :] * qm[:, None, :, :], axis=-1)                 # (m, b, b)
+        return plan, True
+    Q = xp.concat([q, qd], axis=-1)                                       # (*B, b, 8)
+    dots = xp.sum(q[..., :, None, :] * q[..., None, :, :], axis=-1)       # (*B, b, b)
     S = xp.where(dots < 0, -xp.ones_like(dots), xp.ones_like(dots))
-    Y = []
-    for (g, _), Wg in zip(lay.groups, lay.group_weights(), strict=True):
-        Qg = S[:, g, :, None] * Q                                                   # (m, b, 8)
-        Qg = xp.reshape(xp.permute_dims(Qg, (1, 0, 2)), (b, m * 8))
-        Y.append(Wg @ Qg)
-    Y = xp.take(xp.concat(Y, axis=0), lay.unsort, axis=0)                           # (n, m*8)
-    n = Y.shape[0]
-    Y = xp.permute_dims(xp.reshape(Y, (n, m, 8)), (2, 0, 1))
-    return tuple(xp.reshape(Y, (8, n) + batch))
+    tabs = {g: T.pack(xp.expand_dims(S[..., g, :], axis=-1) * Q) for g, _, _ in lay.groups}
+    Ws = lay.sorted_rows("W", lay.dense_weights())
+    Ps = lay.sorted_rows("P", lay.P)
+    Xs = lay.sorted_rows("affine", lay.affine_rows()) if stretch else None
+
+    def plan_sorted(c0, c1):
+        parts = [Ws[max(s0, c0):min(s1, c1)] @ tabs[g] for g, s0, s1 in lay.groups
+                 if s0 < c1 and s1 > c0]
+        Y = parts[0] if len(parts) == 1 else xp.concat(parts, axis=0)     # (nc, 8 m)
+        Y = xp.reshape(Y, (c1 - c0, 8) + T.batch)
+        p = T.points(Ps[c0:c1])
+        if stretch:
+            p = p + T.rows(Xs[c0:c1], tab_s)
+        return dq_apply(xp, Y[:, 0:4], Y[:, 4:8], p)
+
+    return plan_sorted, True
+
+
+def _dq_blend(xp, T: _Tables, lay: Layout, slot, c0: int, c1: int):
+    """Blended (real, dual) (nc, 4, *B) of vertices c0:c1 from ``slot(j, c0, c1)``'s dual
+    quaternions, each flipped to the hemisphere of slot 0's (the pivot)."""
+    piv, d = slot(0, c0, c1)
+    W = T.columns(lay.w[c0:c1])
+    acc_r, acc_d = W[0] * piv, W[0] * d
+    for j in range(1, len(lay.idx)):
+        r, d = slot(j, c0, c1)
+        w = W[j]
+        sw = xp.where(xp.sum(r * piv, axis=1, keepdims=True) < 0, -w, w)
+        acc_r, acc_d = acc_r + sw * r, acc_d + sw * d
+    return acc_r, acc_d
 
 
 def _complement(xp, u):
@@ -342,51 +385,79 @@ def _complement(xp, u):
     return v1, v2
 
 
-def stbs_lbs(xp, bones: Bones, pose: PoseArrays, lay: Layout, batch: tuple):
+def _frame_rows(xp, bones: Bones, lay: Layout, v1, v2, terms):
+    """Dense (n, q b) rows of stbs-lbs's linear part: for each term its (n, b) block."""
+    Wd, P = lay.dense_weights(), lay.P
+
+    def coord(v):       # (p - a_i) . v_i for every vertex and bone
+        return P @ xp.permute_dims(v, (1, 0)) - xp.sum(bones.a * v, axis=-1)[None, :]
+
+    blocks = {"w": lambda: Wd, "u": lambda: Wd * coord(bones.u),
+              "e": lay.weighted_endpoints,
+              "v1": lambda: Wd * coord(v1), "v2": lambda: Wd * coord(v2)}
+    return xp.concat([blocks[t]() for t in terms], axis=1)
+
+
+def _slot_coords(xp, bones: Bones, lay: Layout, v1, v2):
+    """Per slot the weighted twist-plane coordinates ``w (p - a) . v1``, ``w (p - a) . v2``
+    (n,) of every vertex."""
+    out = []
+    for j, ij in enumerate(lay.idx):
+        x = lay.P - xp.take(bones.a, ij, axis=0)
+        w = lay.w[:, j]
+        out.append(tuple(w * xp.sum(x * xp.take(v, ij, axis=0), axis=-1) for v in (v1, v2)))
+    return out
+
+
+def stbs_lbs(xp, bones: Bones, pose: PoseArrays, lay: Layout, T: _Tables):
     """Eq. 5: ``sum_i w_i (a'_i + R_i K_i(e_i) (e_i s_i + p - a_i))``.
 
     In the bone's rest frame (u, v1, v2) the point ``x = p - a`` has coordinates
-    ``(x_u, x_1, x_2)``, fixed per vertex and slot; the twist by
-    ``phi = theta_a + e (theta_b - theta_a)`` turns ``(x_1, x_2)`` and the stretch moves
-    ``x_u`` by ``e (sigma - 1) l``, so the posed point is
-    ``a' + (x_u + e (sigma - 1) l) R u + (c x_1 - s x_2) R v1 + (s x_1 + c x_2) R v2``
-    with ``c, s = cos(phi), sin(phi)``: per vertex only two scalars per slot depend on the
-    twist, and no rotation is applied per vertex.
+    ``(x_u, x_1, x_2)``; the twist by ``phi = theta_a + e (theta_b - theta_a)`` turns
+    ``(x_1, x_2)`` and the stretch moves ``x_u`` by ``e (sigma - 1) l``, so the posed
+    point is ``a' + (x_u + e (sigma - 1) l) R u + (c x_1 - s x_2) R v1 + (s x_1 + c x_2)
+    R v2`` with ``c, s = cos(phi), sin(phi)``. Everything but the twisted terms is linear
+    in per-bone tables (one matrix product over dense rows); the twisted terms are
+    gathered per slot, with no rotation applied per vertex.
     """
     R = pose.matrices(xp)
-    u = bones.u
-    v1, v2 = _complement(xp, u)
+    v1, v2 = _complement(xp, bones.u)
+    Ru, Rv1, Rv2 = (xp.sum(R * v[:, None, :], axis=-1) for v in (bones.u, v1, v2))
     twist, stretch = pose.theta is not None, pose.sigma is not None
-    fields = list(_fields(pose.O, 3))
-    for v in (u, v1, v2):
-        fields += list(_fields(xp.sum(R * v[:, None, :], axis=-1), 3))      # R v
+    terms, tabs = ["w", "u"], [pose.O, Ru]
     if stretch:
-        fields.append((pose.sigma - 1.0) * bones.ell)
+        terms.append("e")
+        tabs.append(((pose.sigma - 1.0) * bones.ell)[..., None] * Ru)
+    if not twist:
+        terms += ["v1", "v2"]
+        tabs += [Rv1, Rv2]
+    X = lay.memo(("stbs-lbs", stretch, twist),
+                 lambda: _frame_rows(xp, bones, lay, v1, v2, terms))
+    tab = xp.concat([T.pack(x) for x in tabs], axis=0)
     if twist:
         th = pose.theta
-        fields += [th[..., 0], th[..., 1] - th[..., 0]]
-    F = _Fields(xp, fields, batch, lay)
-    acc = None
-    for j, ij in enumerate(lay.idx):
-        f = F.slot(j)
-        x = lay.P - xp.take(bones.a, ij, axis=0)                            # (n, 3), rest
-        xu, x1, x2 = (F.vertex(xp.sum(x * xp.take(v, ij, axis=0), axis=-1))
-                      for v in (u, v1, v2))
-        ej = F.vertex(lay.e[:, j])
-        if stretch:
-            xu = xu + ej * f[12]
-        if twist:
-            k = 13 if stretch else 12
-            phi = f[k] + ej * f[k + 1]
-            cs, sn = xp.cos(phi), xp.sin(phi)
-            x1, x2 = cs * x1 - sn * x2, sn * x1 + cs * x2
-        y = [f[i] + xu * f[3 + i] + x1 * f[6 + i] + x2 * f[9 + i] for i in range(3)]
-        wj = F.vertex(lay.w[:, j])
-        acc = [wj * v for v in y] if acc is None else [acc[i] + wj * y[i] for i in range(3)]
-    return F.output(tuple(acc))
+        tab_t = T.pack_many([Rv1, Rv2, xp.expand_dims(th[..., 0], axis=-1),
+                             xp.expand_dims(th[..., 1] - th[..., 0], axis=-1)])
+        K = lay.memo("stbs-lbs-twist", lambda: _slot_coords(xp, bones, lay, v1, v2))
+        K = [(T.vertex(x1), T.vertex(x2)) for x1, x2 in K]
+        E = T.columns(lay.e)
+
+    def plan(c0, c1):
+        acc = T.rows(X[c0:c1], tab)
+        if not twist:
+            return acc
+        for j, ij in enumerate(lay.idx):
+            G1, G2, ta, td = T.gather_many(tab_t, ij[c0:c1])
+            phi = ta + E[j][c0:c1] * td
+            c, s = xp.cos(phi), xp.sin(phi)
+            x1, x2 = K[j][0][c0:c1], K[j][1][c0:c1]
+            acc = acc + (c * x1 - s * x2) * G1 + (s * x1 + c * x2) * G2
+        return acc
+
+    return plan, True
 
 
-def stbs_dqs(xp, bones: Bones, pose: PoseArrays, lay: Layout, batch: tuple):
+def stbs_dqs(xp, bones: Bones, pose: PoseArrays, lay: Layout, T: _Tables):
     """Eq. 6 in bilinear form.
 
     The map ``T(a') Rot(qR) T(e s) Rot(qK) T(-a)`` with ``qK = (cos h, sin h u)``,
@@ -406,35 +477,37 @@ def stbs_dqs(xp, bones: Bones, pose: PoseArrays, lay: Layout, batch: tuple):
     D1 = tuple(x + y for x, y in zip(qmul_pure(R1, half_a), Xd, strict=True))
     D2 = tuple(x + y for x, y in zip(qmul_pure(R2, half_a), qmul_pure(Xd, u), strict=True))
     twist, stretch = pose.theta is not None, pose.sigma is not None
-    fields = list(R1 + D1 + R2 + D2)
-    if stretch:
-        fields.append(0.5 * (pose.sigma - 1.0) * bones.ell)
+    fields = [xp.stack(R1, axis=-1), xp.stack(D1, axis=-1)]
+    if twist or stretch:
+        fields.append(xp.stack(R2, axis=-1))
     if twist:
         th = pose.theta
-        fields += [0.5 * th[..., 0], 0.5 * (th[..., 1] - th[..., 0])]
-    F = _Fields(xp, fields, batch, lay)
-    acc = None
-    for j in range(len(lay.idx)):
-        f = F.slot(j)
-        ej = F.vertex(lay.e[:, j])
-        r1, d1, r2, d2 = f[0:4], f[4:8], f[8:12], f[12:16]
-        k = 17 if stretch else 16
-        if twist:
-            h = f[k] + ej * f[k + 1]
-            ch, sh = xp.cos(h), xp.sin(h)
-            real = tuple(ch * x + sh * y for x, y in zip(r1, r2, strict=True))
-            if stretch:     # dual = ch (D1 + e c R2) + sh (D2 - e c R1)
-                ec = ej * f[16]
-                d1 = tuple(x + ec * y for x, y in zip(d1, r2, strict=True))
-                d2 = tuple(x - ec * y for x, y in zip(d2, r1, strict=True))
-            dual = tuple(ch * x + sh * y for x, y in zip(d1, d2, strict=True))
-        else:
-            real, dual = r1, d1
-            if stretch:
-                ec = ej * f[16]
-                dual = tuple(z + ec * y for z, y in zip(dual, r2, strict=True))
-        acc = _blend_add(xp, acc, real, dual, F.vertex(lay.w[:, j]))
-    return F.output(dq_apply(acc[0], acc[1], F.points()))
+        fields += [xp.stack(D2, axis=-1), xp.expand_dims(0.5 * th[..., 0], axis=-1),
+                   xp.expand_dims(0.5 * (th[..., 1] - th[..., 0]), axis=-1)]
+    if stretch:
+        fields.append(xp.expand_dims(0.5 * (pose.sigma - 1.0) * bones.ell, axis=-1))
+    tab = T.pack_many(fields)
+    E = T.columns(lay.e)
+
+    def slot(j, c0, c1):
+        g = T.gather_many(tab, lay.idx[j][c0:c1])
+        r1, d1 = g[0], g[1]
+        e = E[j][c0:c1]
+        if stretch:
+            r2, ec = g[2], e * g[-1]
+        if not twist:
+            return r1, (d1 + ec * r2 if stretch else d1)
+        r2, d2, ha, hd = g[2:6]
+        h = ha + e * hd
+        ch, sh = xp.cos(h), xp.sin(h)
+        if stretch:     # dual = ch (D1 + e c R2) + sh (D2 - e c R1)
+            d1, d2 = d1 + ec * r2, d2 - ec * r1
+        return ch * r1 + sh * r2, ch * d1 + sh * d2
+
+    def plan(c0, c1):
+        return dq_apply(xp, *_dq_blend(xp, T, lay, slot, c0, c1), T.points(lay.P[c0:c1]))
+
+    return plan, True
 
 
 METHOD_FUNCS = {"lbs": lbs, "dqs": dqs, "stbs-lbs": stbs_lbs, "stbs-dqs": stbs_dqs}
@@ -442,4 +515,13 @@ METHOD_FUNCS = {"lbs": lbs, "dqs": dqs, "stbs-lbs": stbs_lbs, "stbs-dqs": stbs_d
 
 def deform(xp, method: str, bones: Bones, pose: PoseArrays, lay: Layout, batch: tuple):
     """(*B, n, 3) deformed points of ``lay.P`` by ``method``."""
-    return METHOD_FUNCS[method](xp, bones, pose, lay, batch)
+    T = _Tables(xp, batch, lay.b)
+    plan, chunked = METHOD_FUNCS[method](xp, bones, pose, lay, T)
+    n = lay.n
+    rows = _chunk_rows(xp, lay, T.m) if chunked else max(n, 1)
+    pieces = [plan(c0, min(n, c0 + rows)) for c0 in range(0, max(n, 1), rows)]
+    U = pieces[0] if len(pieces) == 1 else xp.concat(pieces, axis=0)     # (n, 3, *B)
+    if lay.unsort is not None:
+        U = xp.take(U, lay.unsort, axis=0)
+    nb = len(batch)
+    return xp.permute_dims(U, tuple(range(2, nb + 2)) + (0, 1))

@@ -199,11 +199,11 @@ class Skinner:
         self._A = bk.asarray(xp, sk.A, dtype=dt, device=dev)
         self._bones = _core.Bones(xp, xp.take(C, bk.index(xp, sk.BE[:, 0], C), axis=0),
                                   xp.take(C, bk.index(xp, sk.BE[:, 1], C), axis=0))
-        # the linear blends' (n, 4b) rows are built once unless V or W carry a gradient
-        # tape (PyTorch), which must be recorded anew in every call
-        taped = any(bool(getattr(x, "requires_grad", False)) for x in (self._P, self._w))
-        linear = self.method == "lbs" or self.method == "dqs"
-        cache = linear and not taped and not self.uses_kernels
+        # the blends' dense rows and per-slot constants are built once unless V, W or E
+        # carry a gradient tape (PyTorch), which must be recorded anew in every call
+        taped = any(bool(getattr(x, "requires_grad", False))
+                    for x in (self._P, self._w, self._e))
+        cache = not taped and not self.uses_kernels
         self._lay = _core.Layout(xp, self._P, self._idx, self._w, self._e, b, cache=cache,
                                  pivots=idx[0] if self.method == "dqs" else None)
         self._deformer = None
@@ -357,7 +357,7 @@ def skin(V, C, BE, W, E, rotations=None, origins=None, stretch=None, twist=None,
     idx = [order[:, j] for j in range(b)]
     w = xp.stack([_gather_rows(xp, W, i, b) for i in idx], axis=1)
     e = None if Ed is None else xp.stack([_gather_rows(xp, Ed, i, b) for i in idx], axis=1)
-    lay = _core.Layout(xp, V3, idx, w, e, b, W=W)
+    lay = _core.Layout(xp, V3, idx, w, e, b, W=W, E=Ed)
     out = _core.deform(xp, method, bones, pose, lay, batch)
     return out[..., :d] if d == 2 else out
 
