@@ -96,3 +96,22 @@ def test_jax_jit_and_grad_agree_with_the_reference_and_torch(d, method):
     for a, b in zip(grads, tt, strict=False):
         tg = np.zeros(b.shape) if b.grad is None else b.grad.numpy()
         np.testing.assert_allclose(np.asarray(a).reshape(tg.shape), tg, atol=1e-8)
+
+
+def test_jax_retraces_and_eager_calls_reuse_no_traced_value(method="stbs-lbs"):
+    """What a Skinner keeps between calls is made outside any trace: a second trace (new
+    batch shape) and an eager call after jit must not meet the first trace's values."""
+    jax = pytest.importorskip("jax")
+    import jax.numpy as jnp
+
+    sk, V, W, E, R, O, S, T = _case()
+    with jax.enable_x64(True):
+        sj = Skinner(V, sk, W, E, method=method, backend="jax")
+        fn = jax.jit(lambda R, O, S, T: sj(rotations=R, origins=O, stretch=S, twist=T))
+        a = fn(*(jnp.asarray(x) for x in (R, O, S, T)))
+        b = fn(*(jnp.asarray(x)[None] for x in (R, O, S, T)))
+        c = sj(rotations=jnp.asarray(R), origins=jnp.asarray(O), stretch=jnp.asarray(S),
+               twist=jnp.asarray(T))
+    want = _ref(V, sk, W, E, method, R, O, S, T)
+    for U in (a, b[0], c):
+        np.testing.assert_allclose(np.asarray(U), want, atol=1e-10)

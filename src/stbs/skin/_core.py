@@ -74,21 +74,21 @@ def rotate(q, x):
 
 
 def dq_apply(xp, r, d, p):
-    """Apply blended (not normalised) dual quaternions to points: (nc, 3, *B).
+    """Apply blended (not normalised) dual quaternions to points: (3, nc, *B).
 
-    ``r``, ``d`` (nc, 4, *B), ``p`` (nc, 3, ...) broadcasting against them. With
+    ``r``, ``d`` (4, nc, *B), ``p`` (3, nc, ...) broadcasting against them. With
     ``r = (w, v)``, ``d = (dw, dv)`` and ``|r|^2 = n2`` the normalised map is
     ``p + (2 / n2) (v x (w p + v x p + dv) + w dv - dw v)``: the rotation by ``r / |r|``
     plus the translation ``2 vec(d r*) / n2``. Not defined where ``r = 0``.
     """
-    w, v = r[:, 0:1], (r[:, 1:2], r[:, 2:3], r[:, 3:4])
-    dw, dv = d[:, 0:1], (d[:, 1:2], d[:, 2:3], d[:, 3:4])
-    pc = (p[:, 0:1], p[:, 1:2], p[:, 2:3])
-    s = 2.0 / xp.sum(r * r, axis=1, keepdims=True)
+    w, v = r[0:1], (r[1:2], r[2:3], r[3:4])
+    dw, dv = d[0:1], (d[1:2], d[2:3], d[3:4])
+    pc = (p[0:1], p[1:2], p[2:3])
+    s = 2.0 / xp.sum(r * r, axis=0, keepdims=True)
     vp = vcross(v, pc)
     inner = tuple(w * pc[i] + vp[i] + dv[i] for i in range(3))
     c = vcross(v, inner)
-    return p + s * xp.concat([c[i] + w * dv[i] - dw * v[i] for i in range(3)], axis=1)
+    return p + s * xp.concat([c[i] + w * dv[i] - dw * v[i] for i in range(3)], axis=0)
 
 
 # ------------------------------------------------------------------ inputs
@@ -141,6 +141,7 @@ class Layout:
         self.W, self.E = W, E
         self.cache = cache
         self._memo: dict = {}
+        self._index: dict = {}
         self.order = self.unsort = self.groups = None
         if pivots is not None:
             order = np.argsort(pivots, kind="stable")
@@ -151,12 +152,31 @@ class Layout:
             self.unsort = bk.index(xp, np.argsort(order), idx[0])
 
     def memo(self, key, make):
-        """``make()``, kept under ``key`` when the layout caches."""
+        """``make()``, kept under ``key`` when the layout caches (never a value made while
+        tracing: it would outlive its trace)."""
         if not self.cache:
             return make()
-        if key not in self._memo:
-            self._memo[key] = make()
-        return self._memo[key]
+        out = self._memo.get(key)
+        if out is None:
+            out = make()
+            if not _traced(out):
+                self._memo[key] = out
+        return out
+
+    def gather_index(self, j: int, c: int, c0: int, c1: int):
+        """Rows of a (c b, m) gather table for slot j's bones of vertices c0:c1, component
+        by component: ``k b + idx_j[v]`` for k < c (an integer constant, kept)."""
+        key = (j, c, c0, c1)
+        out = self._index.get(key)
+        if out is None:
+            if len(self._index) > 4096:
+                self._index.clear()
+            xp, i = self.xp, self.idx[j][c0:c1]
+            offs = xp.arange(c, dtype=i.dtype, device=_device(i)) * self.b
+            out = xp.reshape(offs[:, None] + i[None, :], (c * (c1 - c0),))
+            if not bk.is_traced(out):
+                self._index[key] = out
+        return out
 
     def sorted_rows(self, key, x):
         """(n, ...) rows of x in pivot order."""
@@ -194,6 +214,13 @@ class Layout:
         return out
 
 
+def _traced(x) -> bool:
+    """Whether an array, or any array in nested lists and tuples, is being traced."""
+    if isinstance(x, (list, tuple)):
+        return any(_traced(y) for y in x)
+    return bk.is_traced(x)
+
+
 def _device(x):
     import array_api_compat
 
@@ -201,78 +228,82 @@ def _device(x):
 
 
 class _Tables:
-    """Per-bone fields packed for row gathers, and per-vertex shapes for one batch."""
+    """Per-bone fields packed for row gathers, and per-vertex shapes for one batch.
 
-    def __init__(self, xp, batch: tuple, b: int):
-        self.xp, self.batch, self.b = xp, batch, b
+    Per-vertex arrays are (c, nc, *B): components first, so that an operation between
+    a per-vertex, per-pose scalar (1, nc, *B) and a c-component array runs over one
+    contiguous stretch of nc * prod(B) values per component.
+    """
+
+    def __init__(self, xp, batch: tuple, lay: Layout):
+        self.xp, self.batch, self.lay, self.b = xp, batch, lay, lay.b
         self.m = bk.prod(batch)
         self.tail = (1,) * len(batch)
-        self._index_select = None
+        self._index_select = self._split = None
         if bk.is_torch(xp):     # the compat layer's take adds a negative-index pass
             import torch
 
-            self._index_select = torch.index_select
+            self._index_select, self._split = torch.index_select, torch.split
 
-    def pack(self, X):
-        """(*B, b, c) fields (or anything broadcasting to them) to a (b, c m) table."""
+    def _comps_first(self, X):
+        """(*B, b, c) fields (or anything broadcasting to them) to (c, b, m)."""
         xp, nb = self.xp, len(self.batch)
         c = X.shape[-1]
         X = xp.broadcast_to(X, self.batch + (self.b, c))
-        X = xp.permute_dims(X, (nb, nb + 1) + tuple(range(nb)))          # (b, c, *B)
-        return xp.reshape(X, (self.b, c * self.m))
+        X = xp.permute_dims(X, (nb + 1, nb) + tuple(range(nb)))          # (c, b, *B)
+        return xp.reshape(X, (c, self.b, self.m))
 
-    def pack1(self, x):
-        """(*B, b) scalar fields to a (b, m) table."""
-        return self.pack(self.xp.expand_dims(x, axis=-1))
+    def pack(self, fields):
+        """Groups of (*B, b, c_f) fields as one gather table (sum c_f b, m), and the c_f."""
+        T = self.xp.concat([self._comps_first(f) for f in fields], axis=0)
+        return self.xp.reshape(T, (T.shape[0] * self.b, self.m)), tuple(
+            f.shape[-1] for f in fields)
 
-    def gather(self, T, idx):
-        """Rows ``idx`` (nc,) of a packed table as (nc, c, *B)."""
-        if self._index_select is not None:
-            G = self._index_select(T, 0, idx)
-        else:
-            G = self.xp.take(T, idx, axis=0)
-        return self.xp.reshape(G, (idx.shape[0], T.shape[1] // self.m) + self.batch)
-
-    def pack_many(self, fields):
-        """Several (*B, b, c_f) field groups as one (b, sum c_f m) table and the sizes."""
-        return (self.xp.concat([self.pack(f) for f in fields], axis=1),
-                tuple(f.shape[-1] for f in fields))
-
-    def gather_many(self, packed, idx):
-        """Rows ``idx`` of a :meth:`pack_many` table as its (nc, c_f, *B) groups."""
+    def gather(self, packed, j: int, c0: int, c1: int):
+        """Slot j's bones' rows of a :meth:`pack` table for vertices c0:c1: one
+        (c_f, nc, *B) array per group."""
         T, sizes = packed
-        G = self.gather(T, idx)
-        if self._index_select is not None:      # split's gradient is one concat
-            import torch
-
-            return torch.split(G, sizes, dim=1)
+        c = sum(sizes)
+        idx = self.lay.gather_index(j, c, c0, c1)
+        G = self._index_select(T, 0, idx) if self._index_select is not None else \
+            self.xp.take(T, idx, axis=0)
+        G = self.xp.reshape(G, (c, c1 - c0) + self.batch)
+        if len(sizes) == 1:
+            return [G]
+        if self._split is not None:             # split's gradient is one concat
+            return self._split(G, sizes, dim=0)
         out, k = [], 0
-        for c in sizes:
-            out.append(G[:, k:k + c])
-            k += c
+        for s in sizes:
+            out.append(G[k:k + s])
+            k += s
         return out
 
-    def columns(self, x):
-        """The k columns of per-vertex, per-slot values x (n, k) as (n, 1, 1, ...)."""
-        return [self.vertex(x[:, j]) for j in range(x.shape[1])]
+    def linear(self, fields):
+        """Per-bone c-vectors (*B, b, c) of the q terms of a linear blend as the
+        (c, q b, m) table multiplying dense (n, q b) rows."""
+        return self.xp.concat([self._comps_first(f) for f in fields], axis=1)
 
     def rows(self, X, T):
-        """Dense rows X (nc, q b) times a packed (q b, 3 m) table: (nc, 3, *B)."""
-        return self.xp.reshape(X @ T, (X.shape[0], 3) + self.batch)
-
-    def vertex(self, x):
-        """(nc,) per-vertex values to (nc, 1, 1, ...)."""
-        return self.xp.reshape(x, (x.shape[0], 1) + self.tail)
-
-    def points(self, P):
-        """(nc, 3) rest points to (nc, 3, 1, ...)."""
-        return self.xp.reshape(P, (P.shape[0], 3) + self.tail)
+        """Dense rows X (nc, q b) times a :meth:`linear` table (c, q b, m): (c, nc, *B)."""
+        return self.xp.reshape(X @ T, (T.shape[0], X.shape[0]) + self.batch)
 
     def affine(self, M, t):
-        """The (4b, 3m) table of ``p -> M_i p + t_i`` for :meth:`Layout.affine_rows`:
-        rows ``c b + i`` hold M_i's column c, rows ``3 b + i`` hold t_i."""
-        return self.xp.concat([self.pack(M[..., :, :, c]) for c in range(3)] + [self.pack(t)],
-                              axis=0)
+        """The linear table of ``p -> M_i p + t_i`` for :meth:`Layout.affine_rows`:
+        its term c holds M_i's column c, its last term t_i."""
+        return self.linear([M[..., :, :, c] for c in range(3)] + [t])
+
+    def vertex(self, x):
+        """(nc,) per-vertex values to (1, nc, 1, ...)."""
+        return self.xp.reshape(x, (1, x.shape[0]) + self.tail)
+
+    def columns(self, x):
+        """The k columns of per-vertex, per-slot values x (n, k) as (1, n, 1, ...)."""
+        return [self.vertex(x[:, j]) for j in range(x.shape[1])]
+
+    def points(self, P=None):
+        """The rest points (or the (n, 3) P given) as (3, n, 1, ...)."""
+        P = self.lay.P if P is None else P
+        return self.xp.reshape(self.xp.permute_dims(P, (1, 0)), (3, P.shape[0]) + self.tail)
 
 
 def _chunk_rows(xp, lay: Layout, m: int) -> int:
@@ -286,7 +317,7 @@ def _chunk_rows(xp, lay: Layout, m: int) -> int:
 
 
 # ------------------------------------------------------------------ methods
-# Each method returns (plan, chunked): plan(c0, c1) gives vertices c0:c1 as (nc, 3, *B)
+# Each method returns (plan, chunked): plan(c0, c1) gives vertices c0:c1 as (3, nc, *B)
 
 
 def lbs(xp, bones: Bones, pose: PoseArrays, lay: Layout, T: _Tables):
@@ -324,15 +355,15 @@ def dqs(xp, bones: Bones, pose: PoseArrays, lay: Layout, T: _Tables):
     stretch = pose.sigma is not None
     tab_s = _stretch_table(xp, bones, pose, T) if stretch else None
     if lay.groups is None:      # pivots not known ahead (traced weights): slot by slot
-        TQ, TQD = T.pack(q), T.pack(qd)
+        tab = T.pack([q, qd])
         X = lay.affine_rows() if stretch else None
+        Pt = T.points()
 
         def slot(j, c0, c1):
-            i = lay.idx[j][c0:c1]
-            return T.gather(TQ, i), T.gather(TQD, i)
+            return tuple(T.gather(tab, j, c0, c1))
 
         def plan(c0, c1):
-            p = T.points(lay.P[c0:c1])
+            p = Pt[:, c0:c1]
             if stretch:
                 p = p + T.rows(X[c0:c1], tab_s)
             return dq_apply(xp, *_dq_blend(xp, T, lay, slot, c0, c1), p)
@@ -341,26 +372,26 @@ def dqs(xp, bones: Bones, pose: PoseArrays, lay: Layout, T: _Tables):
     Q = xp.concat([q, qd], axis=-1)                                       # (*B, b, 8)
     dots = xp.sum(q[..., :, None, :] * q[..., None, :, :], axis=-1)       # (*B, b, b)
     S = xp.where(dots < 0, -xp.ones_like(dots), xp.ones_like(dots))
-    tabs = {g: T.pack(xp.expand_dims(S[..., g, :], axis=-1) * Q) for g, _, _ in lay.groups}
+    tabs = {g: T.linear([xp.expand_dims(S[..., g, :], axis=-1) * Q])
+            for g, _, _ in lay.groups}                                    # (8, b, m) each
     Ws = lay.sorted_rows("W", lay.dense_weights())
-    Ps = lay.sorted_rows("P", lay.P)
+    Pt = T.points(lay.sorted_rows("P", lay.P))
     Xs = lay.sorted_rows("affine", lay.affine_rows()) if stretch else None
 
     def plan_sorted(c0, c1):
-        parts = [Ws[max(s0, c0):min(s1, c1)] @ tabs[g] for g, s0, s1 in lay.groups
+        parts = [T.rows(Ws[max(s0, c0):min(s1, c1)], tabs[g]) for g, s0, s1 in lay.groups
                  if s0 < c1 and s1 > c0]
-        Y = parts[0] if len(parts) == 1 else xp.concat(parts, axis=0)     # (nc, 8 m)
-        Y = xp.reshape(Y, (c1 - c0, 8) + T.batch)
-        p = T.points(Ps[c0:c1])
+        Y = parts[0] if len(parts) == 1 else xp.concat(parts, axis=1)     # (8, nc, *B)
+        p = Pt[:, c0:c1]
         if stretch:
             p = p + T.rows(Xs[c0:c1], tab_s)
-        return dq_apply(xp, Y[:, 0:4], Y[:, 4:8], p)
+        return dq_apply(xp, Y[0:4], Y[4:8], p)
 
     return plan_sorted, True
 
 
 def _dq_blend(xp, T: _Tables, lay: Layout, slot, c0: int, c1: int):
-    """Blended (real, dual) (nc, 4, *B) of vertices c0:c1 from ``slot(j, c0, c1)``'s dual
+    """Blended (real, dual) (4, nc, *B) of vertices c0:c1 from ``slot(j, c0, c1)``'s dual
     quaternions, each flipped to the hemisphere of slot 0's (the pivot)."""
     piv, d = slot(0, c0, c1)
     W = T.columns(lay.w[c0:c1])
@@ -368,7 +399,7 @@ def _dq_blend(xp, T: _Tables, lay: Layout, slot, c0: int, c1: int):
     for j in range(1, len(lay.idx)):
         r, d = slot(j, c0, c1)
         w = W[j]
-        sw = xp.where(xp.sum(r * piv, axis=1, keepdims=True) < 0, -w, w)
+        sw = xp.where(xp.sum(r * piv, axis=0, keepdims=True) < 0, -w, w)
         acc_r, acc_d = acc_r + sw * r, acc_d + sw * d
     return acc_r, acc_d
 
@@ -433,11 +464,11 @@ def stbs_lbs(xp, bones: Bones, pose: PoseArrays, lay: Layout, T: _Tables):
         tabs += [Rv1, Rv2]
     X = lay.memo(("stbs-lbs", stretch, twist),
                  lambda: _frame_rows(xp, bones, lay, v1, v2, terms))
-    tab = xp.concat([T.pack(x) for x in tabs], axis=0)
+    tab = T.linear(tabs)
     if twist:
         th = pose.theta
-        tab_t = T.pack_many([Rv1, Rv2, xp.expand_dims(th[..., 0], axis=-1),
-                             xp.expand_dims(th[..., 1] - th[..., 0], axis=-1)])
+        tab_t = T.pack([Rv1, Rv2, xp.expand_dims(th[..., 0], axis=-1),
+                        xp.expand_dims(th[..., 1] - th[..., 0], axis=-1)])
         K = lay.memo("stbs-lbs-twist", lambda: _slot_coords(xp, bones, lay, v1, v2))
         K = [(T.vertex(x1), T.vertex(x2)) for x1, x2 in K]
         E = T.columns(lay.e)
@@ -446,11 +477,11 @@ def stbs_lbs(xp, bones: Bones, pose: PoseArrays, lay: Layout, T: _Tables):
         acc = T.rows(X[c0:c1], tab)
         if not twist:
             return acc
-        for j, ij in enumerate(lay.idx):
-            G1, G2, ta, td = T.gather_many(tab_t, ij[c0:c1])
-            phi = ta + E[j][c0:c1] * td
+        for j in range(len(lay.idx)):
+            G1, G2, ta, td = T.gather(tab_t, j, c0, c1)
+            phi = ta + E[j][:, c0:c1] * td
             c, s = xp.cos(phi), xp.sin(phi)
-            x1, x2 = K[j][0][c0:c1], K[j][1][c0:c1]
+            x1, x2 = K[j][0][:, c0:c1], K[j][1][:, c0:c1]
             acc = acc + (c * x1 - s * x2) * G1 + (s * x1 + c * x2) * G2
         return acc
 
@@ -486,13 +517,14 @@ def stbs_dqs(xp, bones: Bones, pose: PoseArrays, lay: Layout, T: _Tables):
                    xp.expand_dims(0.5 * (th[..., 1] - th[..., 0]), axis=-1)]
     if stretch:
         fields.append(xp.expand_dims(0.5 * (pose.sigma - 1.0) * bones.ell, axis=-1))
-    tab = T.pack_many(fields)
+    tab = T.pack(fields)
     E = T.columns(lay.e)
+    Pt = T.points()
 
     def slot(j, c0, c1):
-        g = T.gather_many(tab, lay.idx[j][c0:c1])
+        g = T.gather(tab, j, c0, c1)
         r1, d1 = g[0], g[1]
-        e = E[j][c0:c1]
+        e = E[j][:, c0:c1]
         if stretch:
             r2, ec = g[2], e * g[-1]
         if not twist:
@@ -505,7 +537,7 @@ def stbs_dqs(xp, bones: Bones, pose: PoseArrays, lay: Layout, T: _Tables):
         return ch * r1 + sh * r2, ch * d1 + sh * d2
 
     def plan(c0, c1):
-        return dq_apply(xp, *_dq_blend(xp, T, lay, slot, c0, c1), T.points(lay.P[c0:c1]))
+        return dq_apply(xp, *_dq_blend(xp, T, lay, slot, c0, c1), Pt[:, c0:c1])
 
     return plan, True
 
@@ -515,13 +547,13 @@ METHOD_FUNCS = {"lbs": lbs, "dqs": dqs, "stbs-lbs": stbs_lbs, "stbs-dqs": stbs_d
 
 def deform(xp, method: str, bones: Bones, pose: PoseArrays, lay: Layout, batch: tuple):
     """(*B, n, 3) deformed points of ``lay.P`` by ``method``."""
-    T = _Tables(xp, batch, lay.b)
+    T = _Tables(xp, batch, lay)
     plan, chunked = METHOD_FUNCS[method](xp, bones, pose, lay, T)
     n = lay.n
     rows = _chunk_rows(xp, lay, T.m) if chunked else max(n, 1)
     pieces = [plan(c0, min(n, c0 + rows)) for c0 in range(0, max(n, 1), rows)]
-    U = pieces[0] if len(pieces) == 1 else xp.concat(pieces, axis=0)     # (n, 3, *B)
+    U = pieces[0] if len(pieces) == 1 else xp.concat(pieces, axis=1)     # (3, n, *B)
     if lay.unsort is not None:
-        U = xp.take(U, lay.unsort, axis=0)
+        U = xp.take(U, lay.unsort, axis=1)
     nb = len(batch)
-    return xp.permute_dims(U, tuple(range(2, nb + 2)) + (0, 1))
+    return xp.permute_dims(U, tuple(range(2, nb + 2)) + (1, 0))
