@@ -35,7 +35,7 @@ from . import _backend as bk
 from .rotations import matrix_to_quat, quat_to_matrix
 
 #: elements (vertices x poses) of one chunk's per-vertex arrays in eager CPU mode
-CHUNK_ELEMENTS = 1 << 15
+CHUNK_ELEMENTS = 1 << 16
 
 # ------------------------------------------------------------------ component algebra
 # quaternions are 4-tuples (w, x, y, z) and vectors 3-tuples of equally shaped arrays
@@ -399,7 +399,9 @@ def _dq_blend(xp, T: _Tables, lay: Layout, slot, c0: int, c1: int):
     for j in range(1, len(lay.idx)):
         r, d = slot(j, c0, c1)
         w = W[j]
-        sw = xp.where(xp.sum(r * piv, axis=0, keepdims=True) < 0, -w, w)
+        # the weight with the sign of the dot product with the pivot: where(dot < 0, -w,
+        # w) up to the sign of an exact zero, several times faster
+        sw = xp.copysign(w, xp.sum(r * piv, axis=0, keepdims=True))
         acc_r, acc_d = acc_r + sw * r, acc_d + sw * d
     return acc_r, acc_d
 
@@ -482,7 +484,8 @@ def stbs_lbs(xp, bones: Bones, pose: PoseArrays, lay: Layout, T: _Tables):
             phi = ta + E[j][:, c0:c1] * td
             c, s = xp.cos(phi), xp.sin(phi)
             x1, x2 = K[j][0][:, c0:c1], K[j][1][:, c0:c1]
-            acc = acc + (c * x1 - s * x2) * G1 + (s * x1 + c * x2) * G2
+            zr, zi, G1, G2 = bk.materialize(xp, c * x1 - s * x2, s * x1 + c * x2, G1, G2)
+            acc = acc + zr * G1 + zi * G2
         return acc
 
     return plan, True
@@ -555,5 +558,6 @@ def deform(xp, method: str, bones: Bones, pose: PoseArrays, lay: Layout, batch: 
     U = pieces[0] if len(pieces) == 1 else xp.concat(pieces, axis=1)     # (3, n, *B)
     if lay.unsort is not None:
         U = xp.take(U, lay.unsort, axis=1)
+    U, = bk.materialize(xp, U)
     nb = len(batch)
     return xp.permute_dims(U, tuple(range(2, nb + 2)) + (1, 0))
