@@ -31,6 +31,7 @@ import os
 import statistics
 import sys
 import time
+import warnings
 
 import numpy as np
 import scipy.sparse as sp
@@ -256,7 +257,9 @@ def _compiled(sk, inputs, repeat: int, sync):
             fn = torch.compile(lambda R, O, s, th: sk(rotations=R, origins=O, stretch=s,
                                                       twist=th), fullgraph=True)
             t0 = time.perf_counter()
-            with torch.no_grad():
+            with torch.no_grad(), warnings.catch_warnings():
+                # Dynamo's notes on the array-API layer's lru_cache'd type checks
+                warnings.filterwarnings("ignore", message="Dynamo detected a call to")
                 fn(*inputs)
             sync()
             state["fn"], state["compile_s"] = fn, time.perf_counter() - t0

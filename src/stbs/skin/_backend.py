@@ -188,13 +188,3 @@ def index(xp: ModuleType, x, like):
     NumPy array."""
     return xp.asarray(np.array(x, dtype=np.int64), device=array_api_compat.device(like))
 
-
-def materialize(xp: ModuleType, *arrays):
-    """The arrays, kept whole by XLA under ``jax.jit`` (an optimisation barrier: without it
-    XLA fuses them into every consumer and recomputes them there, gathers and
-    trigonometry included); unchanged elsewhere."""
-    if is_jax(xp):
-        import jax
-
-        return jax.lax.optimization_barrier(arrays)
-    return arrays

@@ -431,15 +431,24 @@ def _frame_rows(xp, bones: Bones, lay: Layout, v1, v2, terms):
     return xp.concat([blocks[t]() for t in terms], axis=1)
 
 
+def _stbs_lbs_rows(xp, bones: Bones, lay: Layout, v1, v2, terms):
+    return lay.memo(("stbs-lbs",) + tuple(terms),
+                    lambda: _frame_rows(xp, bones, lay, v1, v2, terms))
+
+
 def _slot_coords(xp, bones: Bones, lay: Layout, v1, v2):
     """Per slot the weighted twist-plane coordinates ``w (p - a) . v1``, ``w (p - a) . v2``
     (n,) of every vertex."""
-    out = []
-    for j, ij in enumerate(lay.idx):
-        x = lay.P - xp.take(bones.a, ij, axis=0)
-        w = lay.w[:, j]
-        out.append(tuple(w * xp.sum(x * xp.take(v, ij, axis=0), axis=-1) for v in (v1, v2)))
-    return out
+    def make():
+        out = []
+        for j, ij in enumerate(lay.idx):
+            x = lay.P - xp.take(bones.a, ij, axis=0)
+            w = lay.w[:, j]
+            out.append(tuple(w * xp.sum(x * xp.take(v, ij, axis=0), axis=-1)
+                             for v in (v1, v2)))
+        return out
+
+    return lay.memo("stbs-lbs-twist", make)
 
 
 def stbs_lbs(xp, bones: Bones, pose: PoseArrays, lay: Layout, T: _Tables):
@@ -464,15 +473,13 @@ def stbs_lbs(xp, bones: Bones, pose: PoseArrays, lay: Layout, T: _Tables):
     if not twist:
         terms += ["v1", "v2"]
         tabs += [Rv1, Rv2]
-    X = lay.memo(("stbs-lbs", stretch, twist),
-                 lambda: _frame_rows(xp, bones, lay, v1, v2, terms))
+    X = _stbs_lbs_rows(xp, bones, lay, v1, v2, terms)
     tab = T.linear(tabs)
     if twist:
         th = pose.theta
         tab_t = T.pack([Rv1, Rv2, xp.expand_dims(th[..., 0], axis=-1),
                         xp.expand_dims(th[..., 1] - th[..., 0], axis=-1)])
-        K = lay.memo("stbs-lbs-twist", lambda: _slot_coords(xp, bones, lay, v1, v2))
-        K = [(T.vertex(x1), T.vertex(x2)) for x1, x2 in K]
+        K = [(T.vertex(x1), T.vertex(x2)) for x1, x2 in _slot_coords(xp, bones, lay, v1, v2)]
         E = T.columns(lay.e)
 
     def plan(c0, c1):
@@ -484,8 +491,7 @@ def stbs_lbs(xp, bones: Bones, pose: PoseArrays, lay: Layout, T: _Tables):
             phi = ta + E[j][:, c0:c1] * td
             c, s = xp.cos(phi), xp.sin(phi)
             x1, x2 = K[j][0][:, c0:c1], K[j][1][:, c0:c1]
-            zr, zi, G1, G2 = bk.materialize(xp, c * x1 - s * x2, s * x1 + c * x2, G1, G2)
-            acc = acc + zr * G1 + zi * G2
+            acc = acc + (c * x1 - s * x2) * G1 + (s * x1 + c * x2) * G2
         return acc
 
     return plan, True
@@ -545,6 +551,22 @@ def stbs_dqs(xp, bones: Bones, pose: PoseArrays, lay: Layout, T: _Tables):
     return plan, True
 
 
+def prepare(xp, method: str, bones: Bones, lay: Layout) -> None:
+    """Build what a caching layout keeps for ``method`` now, outside any trace (under
+    ``jax.jit`` it then enters the compiled function as constants); a full STBS pose
+    (stretch and twist) is the case prepared for stbs-lbs."""
+    if method == "stbs-lbs":
+        v1, v2 = _complement(xp, bones.u)
+        _stbs_lbs_rows(xp, bones, lay, v1, v2, ["w", "u", "e"])
+        _slot_coords(xp, bones, lay, v1, v2)
+    elif method in ("lbs", "dqs"):
+        X = lay.affine_rows()
+        if lay.groups is not None:
+            lay.sorted_rows("W", lay.dense_weights())
+            lay.sorted_rows("P", lay.P)
+            lay.sorted_rows("affine", X)
+
+
 METHOD_FUNCS = {"lbs": lbs, "dqs": dqs, "stbs-lbs": stbs_lbs, "stbs-dqs": stbs_dqs}
 
 
@@ -558,6 +580,5 @@ def deform(xp, method: str, bones: Bones, pose: PoseArrays, lay: Layout, batch: 
     U = pieces[0] if len(pieces) == 1 else xp.concat(pieces, axis=1)     # (3, n, *B)
     if lay.unsort is not None:
         U = xp.take(U, lay.unsort, axis=1)
-    U, = bk.materialize(xp, U)
     nb = len(batch)
     return xp.permute_dims(U, tuple(range(2, nb + 2)) + (1, 0))

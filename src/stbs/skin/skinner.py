@@ -206,6 +206,8 @@ class Skinner:
         cache = not taped and not self.uses_kernels
         self._lay = _core.Layout(xp, self._P, self._idx, self._w, self._e, b, cache=cache,
                                  pivots=idx[0] if self.method == "dqs" else None)
+        if cache:
+            _core.prepare(xp, self.method, self._bones, self._lay)
         self._deformer = None
 
     @property
