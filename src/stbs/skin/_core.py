@@ -5,23 +5,26 @@ arrives as per-bone arrays with leading batch axes ``*B`` (already broadcast to 
 shape); the weight layout as ``k`` slots per vertex, slot 0 the heaviest bone (the
 pivot of the dual-quaternion blends).
 
-Layout, chosen for eager speed and cheap gradients:
+Layout, chosen for speed and cheap gradients (``_Tables`` holds it):
 
-- per-vertex arrays are ``(n, c, *B)``: vertex, then ``c`` components (1 for scalars,
-  3 for points, 4 for quaternions), then the batch; per-vertex constants are
-  ``(n, c, 1, ...)`` and broadcast against the batch;
-- a method first builds its per-bone fields and packs each group of them into a
-  ``(b, c * prod(B))`` table; a slot then gathers its bones' rows (one ``take`` along
-  axis 0 of contiguous rows, whose gradient is a scatter-add into the small table);
+- per-vertex arrays are ``(c, n, *B)``: ``c`` components (1 for scalars, 3 for points,
+  4 for quaternions) first, then vertices, then the batch, so that an operation between
+  a per-vertex, per-pose scalar and a c-component array runs over one contiguous stretch
+  per component; per-vertex constants are ``(1, n, 1, ...)``. Under JAX they are
+  ``(n, *B, c)`` instead (``_ComponentsLast``: what XLA's fusion needs);
+- a method first builds its per-bone fields and packs them into one gather table; a slot
+  then gathers its bones' rows for all vertices in one row gather, whose gradient is a
+  scatter-add into the small table;
 - the linear parts of the blends (all of ``lbs``; the rest-space stretch of ``dqs``;
   the translation, stretch and untwisted parts of ``stbs-lbs``) are one matrix product
-  of dense ``(n, q b)`` weight rows with a ``(q b, 3 prod(B))`` table;
+  of dense ``(n, q b)`` weight rows with a per-pose table;
 - the ``dqs`` blend is a matrix product per group of vertices sharing a pivot bone (their
   hemisphere signs then depend on the group and bone only), over vertices sorted by
   pivot;
 - in eager mode on a CPU the vertices are taken in chunks small enough for their
-  temporaries to stay in cache (fresh multi-megabyte arrays cost a page fault per page);
-  traced code (``torch.compile``, ``jax.jit``), JAX and GPUs take all vertices at once.
+  temporaries to stay in cache (an operation that writes a fresh multi-megabyte array
+  runs at the memory's speed, several times slower); traced code (``torch.compile``,
+  ``jax.jit``), JAX and GPUs take all vertices at once.
 
 Which optional inputs are present (stretch, twist) is static: an absent one drops its
 terms from the traced graph.
@@ -73,22 +76,22 @@ def rotate(q, x):
     return tuple(x[i] + w * t[i] + c[i] for i in range(3))
 
 
-def dq_apply(xp, r, d, p):
-    """Apply blended (not normalised) dual quaternions to points: (3, nc, *B).
+def dq_apply(xp, T, r, d, p):
+    """Apply blended (not normalised) dual quaternions to points (``T``'s layout).
 
-    ``r``, ``d`` (4, nc, *B), ``p`` (3, nc, ...) broadcasting against them. With
+    ``r``, ``d`` of 4 components, ``p`` of 3 broadcasting against them. With
     ``r = (w, v)``, ``d = (dw, dv)`` and ``|r|^2 = n2`` the normalised map is
     ``p + (2 / n2) (v x (w p + v x p + dv) + w dv - dw v)``: the rotation by ``r / |r|``
     plus the translation ``2 vec(d r*) / n2``. Not defined where ``r = 0``.
     """
-    w, v = r[0:1], (r[1:2], r[2:3], r[3:4])
-    dw, dv = d[0:1], (d[1:2], d[2:3], d[3:4])
-    pc = (p[0:1], p[1:2], p[2:3])
-    s = 2.0 / xp.sum(r * r, axis=0, keepdims=True)
+    w, v = T.comp(r, 0, 1), tuple(T.comp(r, i, i + 1) for i in (1, 2, 3))
+    dw, dv = T.comp(d, 0, 1), tuple(T.comp(d, i, i + 1) for i in (1, 2, 3))
+    pc = tuple(T.comp(p, i, i + 1) for i in range(3))
+    s = 2.0 / T.csum(r * r)
     vp = vcross(v, pc)
     inner = tuple(w * pc[i] + vp[i] + dv[i] for i in range(3))
     c = vcross(v, inner)
-    return p + s * xp.concat([c[i] + w * dv[i] - dw * v[i] for i in range(3)], axis=0)
+    return p + s * T.ccat([c[i] + w * dv[i] - dw * v[i] for i in range(3)])
 
 
 # ------------------------------------------------------------------ inputs
@@ -232,7 +235,9 @@ class _Tables:
 
     Per-vertex arrays are (c, nc, *B): components first, so that an operation between
     a per-vertex, per-pose scalar (1, nc, *B) and a c-component array runs over one
-    contiguous stretch of nc * prod(B) values per component.
+    contiguous stretch of nc * prod(B) values per component. The methods reach the
+    component and vertex axes only through ``comp``, ``csum``, ``ccat``, ``vslice`` and
+    ``vcat``, so that ``_ComponentsLast`` can lay them out the other way.
     """
 
     def __init__(self, xp, batch: tuple, lay: Layout):
@@ -305,6 +310,99 @@ class _Tables:
         P = self.lay.P if P is None else P
         return self.xp.reshape(self.xp.permute_dims(P, (1, 0)), (3, P.shape[0]) + self.tail)
 
+    # the component and vertex axes, whatever the layout
+    def comp(self, x, a: int, b: int):
+        """Components a:b of a per-vertex array."""
+        return x[a:b]
+
+    def csum(self, x):
+        """The sum over components, kept as one component."""
+        return self.xp.sum(x, axis=0, keepdims=True)
+
+    def ccat(self, xs):
+        return self.xp.concat(xs, axis=0)
+
+    def vslice(self, x, c0: int, c1: int):
+        """Vertices c0:c1 of a per-vertex array."""
+        return x[:, c0:c1]
+
+    def vcat(self, xs):
+        return xs[0] if len(xs) == 1 else self.xp.concat(xs, axis=1)
+
+    def output(self, U, unsort=None):
+        """All vertices' (3, n, *B) points, in vertex order ``unsort`` of them if given, as
+        the (*B, n, 3) result."""
+        xp, nb = self.xp, len(self.batch)
+        if unsort is not None:
+            U = xp.take(U, unsort, axis=1)
+        return xp.permute_dims(U, tuple(range(2, nb + 2)) + (1, 0))
+
+
+class _ComponentsLast(_Tables):
+    """The same with per-vertex arrays (nc, *B, c): vertex first, components last; for
+    XLA (``jax.jit``). XLA fuses the per-vertex work into the loops that consume it; with
+    components first, the loop writing the (*B, n, 3) result runs through a transpose
+    and recomputes each slot's gathers and trigonometry for every coordinate. Here the
+    gathers' natural (nc, *B, c) output is the working layout and the result's transpose
+    keeps its last axis."""
+
+    def _bones_first(self, X):
+        """(*B, b, c) fields (or anything broadcasting to them) to (b, m, c)."""
+        xp, nb = self.xp, len(self.batch)
+        c = X.shape[-1]
+        X = xp.broadcast_to(X, self.batch + (self.b, c))
+        X = xp.permute_dims(X, (nb,) + tuple(range(nb)) + (nb + 1,))      # (b, *B, c)
+        return xp.reshape(X, (self.b, self.m, c))
+
+    def pack(self, fields):
+        return (self.xp.concat([self._bones_first(f) for f in fields], axis=-1),
+                tuple(f.shape[-1] for f in fields))
+
+    def gather(self, packed, j: int, c0: int, c1: int):
+        T, sizes = packed
+        G = self.xp.take(T, self.lay.idx[j][c0:c1], axis=0)              # (nc, m, C)
+        G = self.xp.reshape(G, (c1 - c0,) + self.batch + (G.shape[-1],))
+        out, k = [], 0
+        for c in sizes:
+            out.append(G[..., k:k + c])
+            k += c
+        return out
+
+    def linear(self, fields):
+        T = self.xp.concat([self._bones_first(f) for f in fields], axis=0)  # (qb, m, c)
+        return self.xp.reshape(T, (T.shape[0], -1))
+
+    def rows(self, X, T):
+        return self.xp.reshape(X @ T, (X.shape[0],) + self.batch + (-1,))
+
+    def vertex(self, x):
+        return self.xp.reshape(x, (x.shape[0],) + self.tail + (1,))
+
+    def points(self, P=None):
+        P = self.lay.P if P is None else P
+        return self.xp.reshape(P, (P.shape[0],) + self.tail + (3,))
+
+    def comp(self, x, a: int, b: int):
+        return x[..., a:b]
+
+    def csum(self, x):
+        return self.xp.sum(x, axis=-1, keepdims=True)
+
+    def ccat(self, xs):
+        return self.xp.concat(xs, axis=-1)
+
+    def vslice(self, x, c0: int, c1: int):
+        return x[c0:c1]
+
+    def vcat(self, xs):
+        return xs[0] if len(xs) == 1 else self.xp.concat(xs, axis=0)
+
+    def output(self, U, unsort=None):
+        xp, nb = self.xp, len(self.batch)
+        if unsort is not None:
+            U = xp.take(U, unsort, axis=0)
+        return xp.permute_dims(U, tuple(range(1, nb + 1)) + (0, nb + 1))
+
 
 def _chunk_rows(xp, lay: Layout, m: int) -> int:
     """Vertices per chunk: all of them unless eager on a CPU (NumPy or PyTorch)."""
@@ -317,7 +415,7 @@ def _chunk_rows(xp, lay: Layout, m: int) -> int:
 
 
 # ------------------------------------------------------------------ methods
-# Each method returns (plan, chunked): plan(c0, c1) gives vertices c0:c1 as (3, nc, *B)
+# Each method returns (plan, chunked): plan(c0, c1) gives vertices c0:c1 in T's layout
 
 
 def lbs(xp, bones: Bones, pose: PoseArrays, lay: Layout, T: _Tables):
@@ -363,17 +461,17 @@ def dqs(xp, bones: Bones, pose: PoseArrays, lay: Layout, T: _Tables):
             return tuple(T.gather(tab, j, c0, c1))
 
         def plan(c0, c1):
-            p = Pt[:, c0:c1]
+            p = T.vslice(Pt, c0, c1)
             if stretch:
                 p = p + T.rows(X[c0:c1], tab_s)
-            return dq_apply(xp, *_dq_blend(xp, T, lay, slot, c0, c1), p)
+            return dq_apply(xp, T, *_dq_blend(xp, T, lay, slot, c0, c1), p)
 
         return plan, True
     Q = xp.concat([q, qd], axis=-1)                                       # (*B, b, 8)
     dots = xp.sum(q[..., :, None, :] * q[..., None, :, :], axis=-1)       # (*B, b, b)
     S = xp.where(dots < 0, -xp.ones_like(dots), xp.ones_like(dots))
     tabs = {g: T.linear([xp.expand_dims(S[..., g, :], axis=-1) * Q])
-            for g, _, _ in lay.groups}                                    # (8, b, m) each
+            for g, _, _ in lay.groups}
     Ws = lay.sorted_rows("W", lay.dense_weights())
     Pt = T.points(lay.sorted_rows("P", lay.P))
     Xs = lay.sorted_rows("affine", lay.affine_rows()) if stretch else None
@@ -381,17 +479,17 @@ def dqs(xp, bones: Bones, pose: PoseArrays, lay: Layout, T: _Tables):
     def plan_sorted(c0, c1):
         parts = [T.rows(Ws[max(s0, c0):min(s1, c1)], tabs[g]) for g, s0, s1 in lay.groups
                  if s0 < c1 and s1 > c0]
-        Y = parts[0] if len(parts) == 1 else xp.concat(parts, axis=1)     # (8, nc, *B)
-        p = Pt[:, c0:c1]
+        Y = T.vcat(parts)                                                  # 8 components
+        p = T.vslice(Pt, c0, c1)
         if stretch:
             p = p + T.rows(Xs[c0:c1], tab_s)
-        return dq_apply(xp, Y[0:4], Y[4:8], p)
+        return dq_apply(xp, T, T.comp(Y, 0, 4), T.comp(Y, 4, 8), p)
 
     return plan_sorted, True
 
 
 def _dq_blend(xp, T: _Tables, lay: Layout, slot, c0: int, c1: int):
-    """Blended (real, dual) (4, nc, *B) of vertices c0:c1 from ``slot(j, c0, c1)``'s dual
+    """Blended (real, dual) of vertices c0:c1 from ``slot(j, c0, c1)``'s dual
     quaternions, each flipped to the hemisphere of slot 0's (the pivot)."""
     piv, d = slot(0, c0, c1)
     W = T.columns(lay.w[c0:c1])
@@ -401,7 +499,7 @@ def _dq_blend(xp, T: _Tables, lay: Layout, slot, c0: int, c1: int):
         w = W[j]
         # the weight with the sign of the dot product with the pivot: where(dot < 0, -w,
         # w) up to the sign of an exact zero, several times faster
-        sw = xp.copysign(w, xp.sum(r * piv, axis=0, keepdims=True))
+        sw = xp.copysign(w, T.csum(r * piv))
         acc_r, acc_d = acc_r + sw * r, acc_d + sw * d
     return acc_r, acc_d
 
@@ -488,9 +586,9 @@ def stbs_lbs(xp, bones: Bones, pose: PoseArrays, lay: Layout, T: _Tables):
             return acc
         for j in range(len(lay.idx)):
             G1, G2, ta, td = T.gather(tab_t, j, c0, c1)
-            phi = ta + E[j][:, c0:c1] * td
+            phi = ta + T.vslice(E[j], c0, c1) * td
             c, s = xp.cos(phi), xp.sin(phi)
-            x1, x2 = K[j][0][:, c0:c1], K[j][1][:, c0:c1]
+            x1, x2 = T.vslice(K[j][0], c0, c1), T.vslice(K[j][1], c0, c1)
             acc = acc + (c * x1 - s * x2) * G1 + (s * x1 + c * x2) * G2
         return acc
 
@@ -533,7 +631,7 @@ def stbs_dqs(xp, bones: Bones, pose: PoseArrays, lay: Layout, T: _Tables):
     def slot(j, c0, c1):
         g = T.gather(tab, j, c0, c1)
         r1, d1 = g[0], g[1]
-        e = E[j][:, c0:c1]
+        e = T.vslice(E[j], c0, c1)
         if stretch:
             r2, ec = g[2], e * g[-1]
         if not twist:
@@ -546,7 +644,7 @@ def stbs_dqs(xp, bones: Bones, pose: PoseArrays, lay: Layout, T: _Tables):
         return ch * r1 + sh * r2, ch * d1 + sh * d2
 
     def plan(c0, c1):
-        return dq_apply(xp, *_dq_blend(xp, T, lay, slot, c0, c1), Pt[:, c0:c1])
+        return dq_apply(xp, T, *_dq_blend(xp, T, lay, slot, c0, c1), T.vslice(Pt, c0, c1))
 
     return plan, True
 
@@ -572,13 +670,9 @@ METHOD_FUNCS = {"lbs": lbs, "dqs": dqs, "stbs-lbs": stbs_lbs, "stbs-dqs": stbs_d
 
 def deform(xp, method: str, bones: Bones, pose: PoseArrays, lay: Layout, batch: tuple):
     """(*B, n, 3) deformed points of ``lay.P`` by ``method``."""
-    T = _Tables(xp, batch, lay)
+    T = (_ComponentsLast if bk.is_jax(xp) else _Tables)(xp, batch, lay)
     plan, chunked = METHOD_FUNCS[method](xp, bones, pose, lay, T)
     n = lay.n
     rows = _chunk_rows(xp, lay, T.m) if chunked else max(n, 1)
-    pieces = [plan(c0, min(n, c0 + rows)) for c0 in range(0, max(n, 1), rows)]
-    U = pieces[0] if len(pieces) == 1 else xp.concat(pieces, axis=1)     # (3, n, *B)
-    if lay.unsort is not None:
-        U = xp.take(U, lay.unsort, axis=1)
-    nb = len(batch)
-    return xp.permute_dims(U, tuple(range(2, nb + 2)) + (1, 0))
+    U = T.vcat([plan(c0, min(n, c0 + rows)) for c0 in range(0, max(n, 1), rows)])
+    return T.output(U, lay.unsort)
