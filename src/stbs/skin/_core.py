@@ -172,7 +172,7 @@ class Layout:
         key = (j, c, c0, c1)
         out = self._index.get(key)
         if out is None:
-            if len(self._index) > 4096:
+            if len(self._index) > 256:     # rebuilt when the chunking changes
                 self._index.clear()
             xp, i = self.xp, self.idx[j][c0:c1]
             offs = xp.arange(c, dtype=i.dtype, device=_device(i)) * self.b
