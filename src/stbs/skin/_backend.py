@@ -187,4 +187,3 @@ def index(xp: ModuleType, x, like):
     """Integer index array (int64) on ``like``'s device, from a (possibly read-only)
     NumPy array."""
     return xp.asarray(np.array(x, dtype=np.int64), device=array_api_compat.device(like))
-
