@@ -455,7 +455,7 @@ def dqs(xp, bones: Bones, pose: PoseArrays, lay: Layout, T: _Tables):
     if lay.groups is None:      # pivots not known ahead (traced weights): slot by slot
         tab = T.pack([q, qd])
         X = lay.affine_rows() if stretch else None
-        Pt = T.points()
+        Pt, W = T.points(), T.columns(lay.w)
 
         def slot(j, c0, c1):
             return tuple(T.gather(tab, j, c0, c1))
@@ -464,7 +464,7 @@ def dqs(xp, bones: Bones, pose: PoseArrays, lay: Layout, T: _Tables):
             p = T.vslice(Pt, c0, c1)
             if stretch:
                 p = p + T.rows(X[c0:c1], tab_s)
-            return dq_apply(xp, T, *_dq_blend(xp, T, lay, slot, c0, c1), p)
+            return dq_apply(xp, T, *_dq_blend(xp, T, W, slot, c0, c1), p)
 
         return plan, True
     Q = xp.concat([q, qd], axis=-1)                                       # (*B, b, 8)
@@ -488,15 +488,16 @@ def dqs(xp, bones: Bones, pose: PoseArrays, lay: Layout, T: _Tables):
     return plan_sorted, True
 
 
-def _dq_blend(xp, T: _Tables, lay: Layout, slot, c0: int, c1: int):
+def _dq_blend(xp, T: _Tables, W, slot, c0: int, c1: int):
     """Blended (real, dual) of vertices c0:c1 from ``slot(j, c0, c1)``'s dual
-    quaternions, each flipped to the hemisphere of slot 0's (the pivot)."""
+    quaternions, each flipped to the hemisphere of slot 0's (the pivot); ``W`` the slots'
+    weights as :meth:`_Tables.columns`."""
     piv, d = slot(0, c0, c1)
-    W = T.columns(lay.w[c0:c1])
-    acc_r, acc_d = W[0] * piv, W[0] * d
-    for j in range(1, len(lay.idx)):
+    w = T.vslice(W[0], c0, c1)
+    acc_r, acc_d = w * piv, w * d
+    for j in range(1, len(W)):
         r, d = slot(j, c0, c1)
-        w = W[j]
+        w = T.vslice(W[j], c0, c1)
         # the weight with the sign of the dot product with the pivot: where(dot < 0, -w,
         # w) up to the sign of an exact zero, several times faster
         sw = xp.copysign(w, T.csum(r * piv))
@@ -625,7 +626,7 @@ def stbs_dqs(xp, bones: Bones, pose: PoseArrays, lay: Layout, T: _Tables):
     if stretch:
         fields.append(xp.expand_dims(0.5 * (pose.sigma - 1.0) * bones.ell, axis=-1))
     tab = T.pack(fields)
-    E = T.columns(lay.e)
+    E, W = T.columns(lay.e), T.columns(lay.w)
     Pt = T.points()
 
     def slot(j, c0, c1):
@@ -644,7 +645,7 @@ def stbs_dqs(xp, bones: Bones, pose: PoseArrays, lay: Layout, T: _Tables):
         return ch * r1 + sh * r2, ch * d1 + sh * d2
 
     def plan(c0, c1):
-        return dq_apply(xp, T, *_dq_blend(xp, T, lay, slot, c0, c1), T.vslice(Pt, c0, c1))
+        return dq_apply(xp, T, *_dq_blend(xp, T, W, slot, c0, c1), T.vslice(Pt, c0, c1))
 
     return plan, True
 
